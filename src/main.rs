@@ -1,0 +1,129 @@
+//! The `perfuse` command line: headless runs and validation.
+
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand, ValueEnum};
+use perfuse::output::{RunLength, RunOptions, run_headless};
+use perfuse::scenario::Scenario;
+use perfuse::sim::BackendKind;
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(name = "perfuse", version, about = "Biphasic SPH surgical simulator: a blood-perfused liver")]
+struct Cli {
+    #[command(subcommand)]
+    command: Cmd,
+}
+
+#[derive(Clone, Copy, ValueEnum, Debug)]
+enum Backend {
+    Cpu,
+}
+
+impl From<Backend> for BackendKind {
+    fn from(b: Backend) -> BackendKind {
+        match b {
+            Backend::Cpu => BackendKind::Cpu,
+        }
+    }
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run a scenario headless: CSV frames, probes.csv and summary.json.
+    Run {
+        /// Scenario file (RON).
+        scenario: PathBuf,
+        #[arg(long, value_enum, default_value = "cpu")]
+        backend: Backend,
+        /// Simulated time to stop at [s] (default: the scenario's duration).
+        #[arg(long, conflicts_with = "steps")]
+        until: Option<f64>,
+        /// Number of steps to run.
+        #[arg(long)]
+        steps: Option<u64>,
+        /// Output directory (default: out/<scenario name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a scenario field, e.g. --set numerics.dx_liquid=0.0005 (repeatable).
+        #[arg(long = "set", value_name = "FIELD=VALUE")]
+        set: Vec<String>,
+    },
+    /// Run the validation cases against their analytic references: report.json and PNG plots.
+    Validate {
+        /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever).
+        #[arg(long)]
+        case: Option<String>,
+        /// Reduced resolutions (what the test suite runs).
+        #[arg(long)]
+        quick: bool,
+        #[arg(long, default_value = "out/validate")]
+        out: PathBuf,
+        #[arg(long, value_enum, default_value = "cpu")]
+        backend: Backend,
+    },
+}
+
+fn main() {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
+    if let Err(e) = real_main() {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn real_main() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Cmd::Run { scenario, backend, until, steps, out, set } => {
+            let sc = Scenario::load_with_overrides(&scenario, &set)?;
+            if let Some(t) = until
+                && !(t.is_finite() && t > 0.0)
+            {
+                bail!("--until must be a positive number of seconds, got {t}");
+            }
+            let length = match (until, steps) {
+                (Some(t), _) => Some(RunLength::Until(t)),
+                (None, Some(n)) => Some(RunLength::Steps(n)),
+                _ => None,
+            };
+            let out = out.unwrap_or_else(|| PathBuf::from("out").join(&sc.name));
+            let opts = RunOptions { backend: backend.into(), length, out: Some(out.clone()), progress: true };
+            let summary = run_headless(&sc, &opts).with_context(|| format!("running {}", scenario.display()))?;
+            println!(
+                "{}: {} steps, t = {:.4} s, {:.3e} particle-steps/s, dt {:.2e}..{:.2e} s, mass conserved: {}",
+                sc.name,
+                summary.steps,
+                summary.simulated_time_s,
+                summary.particle_steps_per_s,
+                summary.dt_min_s,
+                summary.dt_max_s,
+                summary.mass.conserved
+            );
+            println!("wrote {} frames and summary.json to {}", summary.frames_written, out.display());
+            if let Some(d) = &summary.divergence {
+                bail!("{d}");
+            }
+            Ok(())
+        }
+        Cmd::Validate { case, quick, out, backend } => {
+            let report =
+                perfuse::analysis::validate::run_validation(case.as_deref(), quick, &out, backend.into(), true)?;
+            for c in &report.cases {
+                println!(
+                    "{:<28} {:<22} {:>10.4} (tol {:>7.4})  {}  {:.1} s",
+                    c.name,
+                    c.metric,
+                    c.value,
+                    c.tolerance,
+                    if c.pass { "PASS" } else { "FAIL" },
+                    c.wall_time_s
+                );
+            }
+            println!("report: {}", out.join("report.json").display());
+            if report.cases.iter().any(|c| !c.pass) {
+                bail!("some validation cases failed");
+            }
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,309 @@
+//! Headless runs and what they write: CSV frames (one row per particle), probe time series and
+//! `summary.json` (the CLI contract of `perfuse run`, documented in the README).
+
+use crate::scenario::{Phase, Quantity, Scenario};
+use crate::sim::{BackendKind, SimError, Simulation, State};
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum OutputError {
+    #[error("cannot write {path}: {source} — check that the directory is writable")]
+    Io { path: String, source: std::io::Error },
+    #[error(transparent)]
+    Sim(#[from] SimError),
+}
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> OutputError + '_ {
+    move |source| OutputError::Io { path: path.display().to_string(), source }
+}
+
+/// Phase masses and counts at the start and end of a run.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct PhaseMass {
+    pub liquid_start_kg: f64,
+    pub liquid_end_kg: f64,
+    pub solid_start_kg: f64,
+    pub solid_end_kg: f64,
+    pub conserved: bool,
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ParticleCounts {
+    pub liquid: usize,
+    pub solid: usize,
+    pub boundary: usize,
+}
+
+/// `summary.json` of `perfuse run`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    pub scenario: String,
+    pub backend: String,
+    pub steps: u64,
+    pub simulated_time_s: f64,
+    pub wall_time_s: f64,
+    pub particle_steps_per_s: f64,
+    pub dt_min_s: f64,
+    pub dt_max_s: f64,
+    /// How many steps each criterion of (2.70) limited Δt.
+    pub dt_limited_by: std::collections::BTreeMap<String, u64>,
+    pub mass: PhaseMass,
+    pub particles: ParticleCounts,
+    pub broken_bonds: u64,
+    pub particles_outside_domain: usize,
+    pub diverged: bool,
+    pub divergence: Option<String>,
+    pub frames_written: usize,
+}
+
+/// How long a headless run goes.
+#[derive(Clone, Copy, Debug)]
+pub enum RunLength {
+    Until(f64),
+    Steps(u64),
+}
+
+/// Options of `perfuse run`.
+pub struct RunOptions {
+    pub backend: BackendKind,
+    pub length: Option<RunLength>,
+    pub out: Option<PathBuf>,
+    pub progress: bool,
+}
+
+/// One probe's per-particle selection.
+struct ProbeSel {
+    phase: Phase,
+    ids: Vec<usize>,
+    quantity: Quantity,
+}
+
+/// Mean of a quantity over selected particles of a state (in world coordinates for positions).
+fn probe_value(state: &State, sel: &ProbeSel, origin: [f64; 3]) -> f64 {
+    let set = match sel.phase {
+        Phase::Liquid => &state.liquid,
+        Phase::Solid => &state.solid,
+    };
+    if sel.ids.is_empty() {
+        return f64::NAN;
+    }
+    let sum: f64 = sel
+        .ids
+        .iter()
+        .map(|&i| match sel.quantity {
+            Quantity::PositionX => set.pos[i].x as f64 + origin[0],
+            Quantity::PositionY => set.pos[i].y as f64 + origin[1],
+            Quantity::PositionZ => set.pos[i].z as f64 + origin[2],
+            Quantity::VelocityX => set.vel[i].x as f64,
+            Quantity::VelocityY => set.vel[i].y as f64,
+            Quantity::VelocityZ => set.vel[i].z as f64,
+            Quantity::Density => set.rho[i] as f64,
+            Quantity::Pressure => set.p[i] as f64,
+            Quantity::SolidFraction => set.n_s[i] as f64,
+            Quantity::LiquidFraction => set.n_l[i] as f64,
+        })
+        .sum();
+    sum / sel.ids.len() as f64
+}
+
+/// Writes one CSV frame: phase,id,x,y,z,vx,vy,vz,density,n_s,n_l,pressure (SI, world coordinates).
+pub fn write_frame_csv(path: &Path, state: &State, origin: [f64; 3]) -> Result<(), OutputError> {
+    let f = std::fs::File::create(path).map_err(io_err(path))?;
+    let mut w = std::io::BufWriter::new(f);
+    let mut text = String::with_capacity(100 * (state.liquid.len() + state.solid.len()) + 64);
+    text.push_str("phase,id,x,y,z,vx,vy,vz,density,n_s,n_l,pressure\n");
+    for (name, set) in [("liquid", &state.liquid), ("solid", &state.solid)] {
+        for i in 0..set.len() {
+            let p = set.pos[i];
+            let v = set.vel[i];
+            text.push_str(&format!(
+                "{name},{},{:.9e},{:.9e},{:.9e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e}\n",
+                set.id[i],
+                p.x as f64 + origin[0],
+                p.y as f64 + origin[1],
+                p.z as f64 + origin[2],
+                v.x,
+                v.y,
+                v.z,
+                set.rho[i],
+                set.n_s[i],
+                set.n_l[i],
+                set.p[i]
+            ));
+        }
+    }
+    w.write_all(text.as_bytes()).map_err(io_err(path))?;
+    w.flush().map_err(io_err(path))
+}
+
+/// Particles (liquid + solid) outside the domain box.
+pub fn count_outside(state: &State, sim: &Simulation) -> usize {
+    let p = sim.params();
+    let d = p.dim.n();
+    let out = |x: glam::Vec3| (0..d).any(|a| !p.periodic[a] && (x[a] < p.domain_min[a] || x[a] > p.domain_max[a]));
+    state.liquid.pos.iter().chain(state.solid.pos.iter()).filter(|x| out(**x)).count()
+}
+
+/// Runs a scenario headless: relaxation, steps, frames, probes and the summary.
+pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, OutputError> {
+    let started = Instant::now();
+    let mut sim = Simulation::new(scenario, opts.backend)?;
+    if let Some(dir) = &opts.out {
+        std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+    }
+    let origin = sim.params().origin;
+    let bar = if opts.progress { Some(progress_bar()) } else { None };
+    let mut divergence = None;
+    if let Err(e) = sim.relax(|_| {}) {
+        divergence = Some(e.to_string());
+    }
+    let s0 = sim.read_state()?;
+    let d = scenario.dimensions;
+    let probes: Vec<ProbeSel> = scenario
+        .output
+        .probes
+        .iter()
+        .map(|pr| {
+            let set = match pr.phase {
+                Phase::Liquid => &s0.liquid,
+                Phase::Solid => &s0.solid,
+            };
+            let ids = (0..set.len()).filter(|&i| pr.region.contains(sim.params().to_world(set.pos[i]), d)).collect();
+            ProbeSel { phase: pr.phase, ids, quantity: pr.quantity }
+        })
+        .collect();
+    let (t_end, max_steps) = match opts.length {
+        Some(RunLength::Until(t)) => (t, u64::MAX),
+        Some(RunLength::Steps(n)) => (f64::INFINITY, n),
+        None => (scenario.duration, u64::MAX),
+    };
+    let frame_dt = scenario.output.frame_interval;
+    let probe_dt = frame_dt.unwrap_or(f64::INFINITY).min(if t_end.is_finite() { t_end / 200.0 } else { f64::INFINITY });
+    let mut frames = 0usize;
+    let mut probe_rows: Vec<(f64, Vec<f64>)> = Vec::new();
+    let write_frame = |state: &State, frames: &mut usize| -> Result<(), OutputError> {
+        if let Some(dir) = &opts.out {
+            write_frame_csv(&dir.join(format!("frame_{:05}.csv", *frames)), state, origin)?;
+        }
+        *frames += 1;
+        Ok(())
+    };
+    if frame_dt.is_some() {
+        write_frame(&s0, &mut frames)?;
+    }
+    probe_rows.push((s0.t, probes.iter().map(|p| probe_value(&s0, p, origin)).collect()));
+    let mut next_frame = frame_dt.unwrap_or(f64::INFINITY);
+    let mut next_probe = probe_dt;
+    let mut steps = 0u64;
+    let run_start = Instant::now();
+    let mut last_bar = Instant::now();
+    while divergence.is_none() && sim.time() < t_end && steps < max_steps {
+        match sim.step() {
+            Ok(info) => {
+                steps += 1;
+                if info.t >= next_frame - 1e-12 || info.t >= next_probe - 1e-12 {
+                    let st = sim.read_state()?;
+                    if info.t >= next_probe - 1e-12 {
+                        probe_rows.push((st.t, probes.iter().map(|p| probe_value(&st, p, origin)).collect()));
+                        while next_probe <= info.t {
+                            next_probe += probe_dt;
+                        }
+                    }
+                    if info.t >= next_frame - 1e-12 {
+                        write_frame(&st, &mut frames)?;
+                        while next_frame <= info.t {
+                            next_frame += frame_dt.unwrap_or(f64::INFINITY);
+                        }
+                    }
+                }
+                if let Some(b) = &bar
+                    && last_bar.elapsed().as_millis() > 200
+                {
+                    last_bar = Instant::now();
+                    let frac = if t_end.is_finite() { info.t / t_end } else { steps as f64 / max_steps as f64 };
+                    b.set_position((frac.clamp(0.0, 1.0) * 1000.0) as u64);
+                    b.set_message(format!("t = {:.4} s, dt = {:.2e} s ({})", info.t, info.dt, info.limit.name()));
+                }
+            }
+            Err(e) => divergence = Some(e.to_string()),
+        }
+    }
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let wall_run = run_start.elapsed().as_secs_f64();
+    let fin = sim.read_state()?;
+    if frame_dt.is_none() || (frames > 0 && fin.t > next_frame - frame_dt.unwrap_or(0.0) + 1e-12) {
+        write_frame(&fin, &mut frames)?;
+    }
+    if let Some(dir) = &opts.out
+        && !scenario.output.probes.is_empty()
+    {
+        let path = dir.join("probes.csv");
+        let mut text = String::from("t");
+        for p in &scenario.output.probes {
+            text.push(',');
+            text.push_str(&p.name);
+        }
+        text.push('\n');
+        for (t, vals) in &probe_rows {
+            text.push_str(&format!("{t:.9e}"));
+            for v in vals {
+                text.push_str(&format!(",{v:.9e}"));
+            }
+            text.push('\n');
+        }
+        std::fs::write(&path, text).map_err(io_err(&path))?;
+    }
+    let n_particles = fin.liquid.len() + fin.solid.len();
+    let stats = sim.stats().clone();
+    let mass = PhaseMass {
+        liquid_start_kg: s0.liquid.total_mass(),
+        liquid_end_kg: fin.liquid.total_mass(),
+        solid_start_kg: s0.solid.total_mass(),
+        solid_end_kg: fin.solid.total_mass(),
+        conserved: s0.liquid.total_mass() == fin.liquid.total_mass() && s0.solid.total_mass() == fin.solid.total_mass(),
+    };
+    let summary = Summary {
+        scenario: scenario.name.clone(),
+        backend: format!("{:?}", opts.backend).to_lowercase(),
+        steps,
+        simulated_time_s: fin.t,
+        wall_time_s: started.elapsed().as_secs_f64(),
+        particle_steps_per_s: if wall_run > 0.0 { steps as f64 * n_particles as f64 / wall_run } else { 0.0 },
+        dt_min_s: if stats.dt_min.is_finite() { stats.dt_min } else { 0.0 },
+        dt_max_s: stats.dt_max,
+        dt_limited_by: stats.dt_limited_by,
+        mass,
+        particles: ParticleCounts {
+            liquid: fin.liquid.len(),
+            solid: fin.solid.len(),
+            boundary: fin.boundary.pos.len(),
+        },
+        broken_bonds: fin.broken_bonds(),
+        particles_outside_domain: count_outside(&fin, &sim),
+        diverged: divergence.is_some(),
+        divergence,
+        frames_written: frames,
+    };
+    if let Some(dir) = &opts.out {
+        let path = dir.join("summary.json");
+        let text = serde_json::to_string_pretty(&summary)
+            .map_err(|e| OutputError::Io { path: path.display().to_string(), source: std::io::Error::other(e) })?;
+        std::fs::write(&path, text).map_err(io_err(&path))?;
+    }
+    Ok(summary)
+}
+
+/// A progress bar with ETA on stderr (hidden when stderr is not a terminal).
+pub fn progress_bar() -> indicatif::ProgressBar {
+    let b = indicatif::ProgressBar::new(1000);
+    if let Ok(style) = indicatif::ProgressStyle::with_template("{bar:40} {percent:>3}% ETA {eta} {msg}") {
+        b.set_style(style);
+    }
+    b
+}

@@ -1,0 +1,263 @@
+//! Particle generators: lattices in boxes and balls, perfused blocks, boundary objects, and the
+//! particle masses of SPEC §1.2 / D-2 (m = n₀ρ₀/S_W) and §4.1 (boundary equivalent masses).
+
+use super::{Generator, InitialVelocity, Motion, Phase, PressureMode, Region, Scenario, V3};
+use crate::sim::kernels::{Dim, lattice_poly6_sum};
+
+/// Flags of a solid particle (bit set), mirrored in `shaders/common.wgsl` (`SOLID_*`).
+pub struct SolidFlags;
+impl SolidFlags {
+    /// Position prescribed (clamp, ligament, porous skeleton held still): SPEC §4.2.
+    pub const KINEMATIC: u32 = 1;
+    /// Membrane (Glisson's capsule) particle: SPEC §4.5.
+    pub const MEMBRANE: u32 = 2;
+}
+
+/// Particles of one phase as generated (f64, absolute coordinates).
+#[derive(Clone, Debug, Default)]
+pub struct PhaseParticles {
+    pub pos: Vec<V3>,
+    pub vel: Vec<V3>,
+    pub mass: Vec<f64>,
+}
+
+/// One rigid boundary object.
+#[derive(Clone, Debug)]
+pub struct BoundaryObject {
+    pub name: String,
+    pub shape: Region,
+    pub motion: Motion,
+    pub pressure: PressureMode,
+    pub spacing: f64,
+}
+
+/// Everything a back-end needs to build its initial state, plus the derived per-phase sizes.
+#[derive(Clone, Debug, Default)]
+pub struct GeneratedParticles {
+    pub liquid: PhaseParticles,
+    pub solid: PhaseParticles,
+    pub solid_flags: Vec<u32>,
+    /// Equivalent mass a solid particle shows the liquid when it is a membrane (boundary) particle.
+    pub solid_liquid_boundary_mass: Vec<f64>,
+    pub boundary_pos: Vec<V3>,
+    pub boundary_object: Vec<u32>,
+    pub boundary_mass_liquid: Vec<f64>,
+    pub boundary_mass_solid: Vec<f64>,
+    pub objects: Vec<BoundaryObject>,
+    /// Δx and h of each phase [m] (0 where the phase is absent).
+    pub dx_liquid: f64,
+    pub dx_solid: f64,
+    pub h_liquid: f64,
+    pub h_solid: f64,
+    /// Particle mass of each phase [kg] (m = n₀ρ₀/S_W), and its n₀.
+    pub mass_liquid: f64,
+    pub mass_solid: f64,
+    pub fraction_liquid: f64,
+    pub fraction_solid: f64,
+}
+
+/// Number of lattice points `lattice_points` would produce (used by validation).
+pub fn lattice_count(region: &Region, dx: f64, d: usize) -> usize {
+    match region {
+        Region::Box { min, max } => (0..d).map(|a| box_cells(max[a] - min[a], dx)).product(),
+        Region::Sphere { .. } => lattice_points(region, dx, d).len(),
+    }
+}
+
+fn box_cells(extent: f64, dx: f64) -> usize {
+    if !(extent > 0.0 && dx > 0.0) {
+        return 0;
+    }
+    let n = (extent / dx + 1e-6).floor();
+    if n > 1e8 { usize::MAX / 8 } else { n as usize }
+}
+
+/// Cell-centred lattice points of spacing `dx` inside `region` (z = 0 in 2-D), in a fixed order
+/// (x fastest, then y, then z).
+pub fn lattice_points(region: &Region, dx: f64, d: usize) -> Vec<V3> {
+    let mut out = Vec::new();
+    match region {
+        Region::Box { min, max } => {
+            let mut n = [1usize; 3];
+            let mut start = [0.0f64; 3];
+            for a in 0..d {
+                let ext = max[a] - min[a];
+                n[a] = box_cells(ext, dx);
+                start[a] = min[a] + 0.5 * (ext - n[a] as f64 * dx) + 0.5 * dx;
+            }
+            if n.iter().product::<usize>() > 50_000_000 {
+                return out;
+            }
+            for k in 0..n[2] {
+                for j in 0..n[1] {
+                    for i in 0..n[0] {
+                        let z = if d == 3 { start[2] + k as f64 * dx } else { 0.0 };
+                        out.push([start[0] + i as f64 * dx, start[1] + j as f64 * dx, z]);
+                    }
+                }
+            }
+        }
+        Region::Sphere { centre, radius } => {
+            let n = (radius / dx).floor() as i64;
+            if n > 2000 {
+                return out;
+            }
+            let nz = if d == 3 { n } else { 0 };
+            for k in -nz..=nz {
+                for j in -n..=n {
+                    for i in -n..=n {
+                        let p = [i as f64 * dx, j as f64 * dx, k as f64 * dx];
+                        if p[0] * p[0] + p[1] * p[1] + p[2] * p[2] <= radius * radius * (1.0 + 1e-9) {
+                            let z = if d == 3 { centre[2] + p[2] } else { 0.0 };
+                            out.push([centre[0] + p[0], centre[1] + p[1], z]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// First clamped–free bending mode shape φ(x) with βL = 1.8751041 (SPEC §7.2), φ(L) = 2.
+pub fn cantilever_mode(x: f64, length: f64) -> f64 {
+    let bl = 1.875_104_1_f64;
+    let sigma = (bl.cosh() + bl.cos()) / (bl.sinh() + bl.sin());
+    let b = bl / length;
+    let bx = b * x;
+    bx.cosh() - bx.cos() - sigma * (bx.sinh() - bx.sin())
+}
+
+fn initial_velocity(v: &Option<InitialVelocity>, p: V3) -> V3 {
+    match v {
+        None => [0.0; 3],
+        Some(InitialVelocity::Uniform(u)) => *u,
+        Some(InitialVelocity::CantileverMode { root, length, amplitude, direction }) => {
+            let x = (p[0] - root).clamp(0.0, *length);
+            let s = amplitude * cantilever_mode(x, *length) / cantilever_mode(*length, *length);
+            [s * direction[0], s * direction[1], s * direction[2]]
+        }
+    }
+}
+
+/// Generates every particle of a validated scenario.
+pub fn generate(s: &Scenario) -> GeneratedParticles {
+    let d = s.dimensions as usize;
+    let dim = if d == 2 { Dim::Two } else { Dim::Three };
+    let n = &s.numerics;
+    let mut g = GeneratedParticles {
+        dx_liquid: n.dx_liquid.unwrap_or(0.0),
+        dx_solid: n.dx_solid.unwrap_or(0.0),
+        ..Default::default()
+    };
+    g.h_liquid = n.h_liquid.unwrap_or(n.h_over_dx * g.dx_liquid);
+    g.h_solid = n.h_solid.unwrap_or(n.h_over_dx * g.dx_solid);
+    for spec in &s.particles {
+        match spec {
+            Generator::Box { phase, fraction, .. } | Generator::Sphere { phase, fraction, .. } => match phase {
+                Phase::Liquid => g.fraction_liquid = *fraction,
+                Phase::Solid => g.fraction_solid = *fraction,
+            },
+            Generator::PerfusedBlock { solid_fraction, liquid_fraction, .. } => {
+                g.fraction_solid = *solid_fraction;
+                g.fraction_liquid = *liquid_fraction;
+            }
+        }
+    }
+    if let Some(l) = &s.liquid
+        && g.dx_liquid > 0.0
+    {
+        g.mass_liquid = g.fraction_liquid * l.density / lattice_poly6_sum(g.dx_liquid, 2.0 * g.h_liquid, dim);
+    }
+    if let Some(m) = &s.solid
+        && g.dx_solid > 0.0
+    {
+        g.mass_solid = g.fraction_solid * m.density / lattice_poly6_sum(g.dx_solid, 2.0 * g.h_solid, dim);
+    }
+
+    let push = |phase: Phase, region: &Region, vel: &Option<InitialVelocity>, g: &mut GeneratedParticles| {
+        let (dx, mass) = match phase {
+            Phase::Liquid => (g.dx_liquid, g.mass_liquid),
+            Phase::Solid => (g.dx_solid, g.mass_solid),
+        };
+        let set = match phase {
+            Phase::Liquid => &mut g.liquid,
+            Phase::Solid => &mut g.solid,
+        };
+        for p in lattice_points(region, dx, d) {
+            set.vel.push(initial_velocity(vel, p));
+            set.pos.push(p);
+            set.mass.push(mass);
+        }
+    };
+    for spec in &s.particles {
+        match spec {
+            Generator::Box { phase, min, max, velocity, .. } => {
+                push(*phase, &Region::Box { min: *min, max: *max }, velocity, &mut g)
+            }
+            Generator::Sphere { phase, centre, radius, velocity, .. } => {
+                push(*phase, &Region::Sphere { centre: *centre, radius: *radius }, velocity, &mut g)
+            }
+            Generator::PerfusedBlock { min, max, .. } => {
+                let r = Region::Box { min: *min, max: *max };
+                push(Phase::Solid, &r, &None, &mut g);
+                push(Phase::Liquid, &r, &None, &mut g);
+            }
+        }
+    }
+    g.solid_flags = g
+        .solid
+        .pos
+        .iter()
+        .map(|p| if s.fixed_regions.iter().any(|r| r.contains(*p, s.dimensions)) { SolidFlags::KINEMATIC } else { 0 })
+        .collect();
+    g.solid_liquid_boundary_mass = vec![0.0; g.solid.pos.len()];
+
+    let default_spacing = if g.dx_solid > 0.0 { g.dx_solid } else { g.dx_liquid };
+    for (k, b) in s.boundaries.iter().enumerate() {
+        let sp = b.spacing.unwrap_or(default_spacing);
+        let ml = if g.dx_liquid > 0.0 { g.mass_liquid * (sp / g.dx_liquid).powi(d as i32) } else { 0.0 };
+        let ms = if g.dx_solid > 0.0 { g.mass_solid * (sp / g.dx_solid).powi(d as i32) } else { 0.0 };
+        for p in lattice_points(&b.shape, sp, d) {
+            g.boundary_pos.push(p);
+            g.boundary_object.push(k as u32);
+            g.boundary_mass_liquid.push(ml);
+            g.boundary_mass_solid.push(ms);
+        }
+        g.objects.push(BoundaryObject {
+            name: b.name.clone(),
+            shape: b.shape.clone(),
+            motion: b.motion.clone(),
+            pressure: b.pressure.clone(),
+            spacing: sp,
+        });
+    }
+    g
+}
+
+/// Displacement [m] and velocity [m/s] of a boundary object at time t (SPEC §4.1).
+/// Before t = 0 (relaxation) every object rests at its initial pose.
+pub fn motion_at(m: &Motion, t: f64) -> (V3, V3) {
+    if t < 0.0 {
+        return ([0.0; 3], [0.0; 3]);
+    }
+    match m {
+        Motion::Static => ([0.0; 3], [0.0; 3]),
+        Motion::Translate { velocity, start, stop } => {
+            let end = stop.unwrap_or(f64::INFINITY);
+            let active = (t.min(end) - start).max(0.0);
+            let moving = t >= *start && t < end;
+            let v = if moving { *velocity } else { [0.0; 3] };
+            ([velocity[0] * active, velocity[1] * active, velocity[2] * active], v)
+        }
+        Motion::Oscillate { amplitude, frequency, phase } => {
+            let w = 2.0 * std::f64::consts::PI * frequency;
+            let s = (w * t + phase).sin() - phase.sin();
+            let c = w * (w * t + phase).cos();
+            (
+                [amplitude[0] * s, amplitude[1] * s, amplitude[2] * s],
+                [amplitude[0] * c, amplitude[1] * c, amplitude[2] * c],
+            )
+        }
+    }
+}

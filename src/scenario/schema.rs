@@ -1,0 +1,405 @@
+//! The RON scenario schema: what is simulated, in SI units (m, kg, s, Pa).
+//!
+//! Every struct denies unknown fields, so a misspelt field is an error that names it, never a silently
+//! ignored value. Defaults are the values of SPEC.md §6; the shipped scenarios still state them
+//! explicitly. Vectors are always written with three components `(x, y, z)`; 2-D scenarios put the
+//! lattice in the z = 0 plane and ignore z.
+
+use serde::{Deserialize, Serialize};
+
+/// A 3-component vector in the scenario file.
+pub type V3 = [f64; 3];
+
+/// A whole scenario: materials, numerics, particles, boundaries, duration and outputs.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Short identifier, used in output file names.
+    pub name: String,
+    /// One paragraph for people: what this scenario reproduces and where from.
+    #[serde(default)]
+    pub description: String,
+    /// Spatial dimension, 2 (plane strain, lattice in z = 0) or 3.
+    pub dimensions: u32,
+    /// The simulated box and its periodic axes.
+    pub domain: Domain,
+    /// Body-force acceleration g [m/s²] applied to both phases (SPEC §3.11).
+    #[serde(default)]
+    pub gravity: V3,
+    /// Liquid (blood) material; required when any liquid particle is generated.
+    #[serde(default)]
+    pub liquid: Option<Liquid>,
+    /// Solid (tissue skeleton) material; required when any solid particle is generated.
+    #[serde(default)]
+    pub solid: Option<Solid>,
+    /// Discretisation and stabilisation parameters.
+    pub numerics: Numerics,
+    /// Particle generators (lattices).
+    pub particles: Vec<Generator>,
+    /// Virtual boundary particle objects: walls, plates, tools (SPEC §4.1).
+    #[serde(default)]
+    pub boundaries: Vec<Boundary>,
+    /// Regions whose solid particles are kinematic and held still (clamps, ligaments; SPEC §4.2).
+    #[serde(default)]
+    pub fixed_regions: Vec<Region>,
+    /// Simulated time [s] of a run (after relaxation).
+    pub duration: f64,
+    /// Optional damped relaxation before t = 0 (SPEC §7.5).
+    #[serde(default)]
+    pub relaxation: Option<Relaxation>,
+    /// Frames and probes written by `perfuse run`.
+    #[serde(default)]
+    pub output: Output,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Domain {
+    /// Lower corner [m].
+    pub min: V3,
+    /// Upper corner [m].
+    pub max: V3,
+    /// Periodic axes (x, y, z): particles leaving one side re-enter on the other (SPEC §4.3).
+    #[serde(default)]
+    pub periodic: [bool; 3],
+}
+
+/// Newtonian liquid (blood).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Liquid {
+    /// Intrinsic density ρ₀ˡ [kg/m³].
+    pub density: f64,
+    /// Dynamic viscosity η [Pa·s] (2.50).
+    pub viscosity: f64,
+    /// Penalty stiffness k_sat of (2.53) [Pa]; give this or `sound_speed`, not both.
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+    /// Numerical sound speed c_l [m/s]; stiffness = ρ₀c² (SPEC D-5).
+    #[serde(default)]
+    pub sound_speed: Option<f64>,
+    /// C₁ of the wicking pressure (3.5); 0 outside the wicking scenarios.
+    #[serde(default)]
+    pub c1: f64,
+}
+
+/// Hyperelastic porous solid (tissue skeleton).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Solid {
+    /// Intrinsic density ρ₀ˢ [kg/m³].
+    pub density: f64,
+    /// Mooney–Rivlin C10 [Pa] (2.14).
+    pub c10: f64,
+    /// Mooney–Rivlin C01 [Pa] (2.14).
+    pub c01: f64,
+    /// Structural stiffness k_s of (2.52) [Pa].
+    pub k_s: f64,
+    /// Solid volume fraction at perfused equilibrium nˢ_sat of (2.52).
+    pub n_sat: f64,
+    /// Saturation stiffness k_sat of (2.52) [Pa].
+    pub k_sat: f64,
+    /// Interphase friction coefficient K̄ [Pa·s/m²], K = (1 − nˢ)K̄ (2.17).
+    #[serde(default)]
+    pub friction: f64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Numerics {
+    /// Lattice spacing of liquid particles Δx_l [m]; required when liquid is generated.
+    #[serde(default)]
+    pub dx_liquid: Option<f64>,
+    /// Lattice spacing of solid particles Δx_s [m]; required when solid is generated.
+    #[serde(default)]
+    pub dx_solid: Option<f64>,
+    /// h/Δx, 1 ≤ h/Δx ≤ 2 (thesis §2.2.4); default 1.3.
+    #[serde(default = "d_h_over_dx")]
+    pub h_over_dx: f64,
+    /// Explicit smoothing length of the liquid [m] (overrides h_over_dx·Δx_l).
+    #[serde(default)]
+    pub h_liquid: Option<f64>,
+    /// Explicit smoothing length of the solid [m] (overrides h_over_dx·Δx_s).
+    #[serde(default)]
+    pub h_solid: Option<f64>,
+    /// Artificial viscosity (2.54)–(2.58).
+    #[serde(default)]
+    pub artificial_viscosity: ArtificialViscosity,
+    /// Artificial stress (2.59)–(2.60).
+    #[serde(default)]
+    pub artificial_stress: ArtificialStress,
+    /// XSPH ε̃ per phase (2.69).
+    #[serde(default)]
+    pub xsph: Xsph,
+    /// Time-step factors of (2.70) and the friction bound (SPEC §5.3).
+    #[serde(default)]
+    pub cfl: Cfl,
+    /// Smallest acceptable time step [s]: a run whose bound falls below it is reported as diverged.
+    #[serde(default = "d_dt_min")]
+    pub dt_min: f64,
+    /// Largest time step [s].
+    #[serde(default = "d_dt_max")]
+    pub dt_max: f64,
+    /// Fixed time step [s]; must not exceed the computed bound by more than 5 % (SPEC §5.3).
+    #[serde(default)]
+    pub fixed_dt: Option<f64>,
+    /// Multiply the viscous term by κ_V (SPEC §2.5, D-7).
+    #[serde(default = "d_true")]
+    pub viscous_laplacian_normalisation: bool,
+    /// Signal speed of the liquid [m/s]; default sqrt(k/ρ₀) (SPEC D-27).
+    #[serde(default)]
+    pub sound_speed_liquid: Option<f64>,
+    /// Signal speed of the solid [m/s]; default includes the elastic wave speed (SPEC D-27).
+    #[serde(default)]
+    pub sound_speed_solid: Option<f64>,
+    /// Let the liquid penalty pressure (2.53) go negative. Default false: pˡ = max(pˡ, 0), i.e. the liquid
+    /// sustains no tension. With summation density (2.46) a free-surface particle misses part of its
+    /// kernel support (nˡ ≈ 0.7 at a corner), which the linear penalty turns into tens of kPa of
+    /// artificial tension that tears free surfaces apart (README: deviations from SPEC).
+    #[serde(default)]
+    pub liquid_tension: bool,
+    /// Speed [m/s] above which a particle counts as runaway (divergence); default 20·c_max.
+    #[serde(default)]
+    pub max_speed: Option<f64>,
+}
+
+fn d_h_over_dx() -> f64 {
+    1.3
+}
+fn d_dt_min() -> f64 {
+    1e-9
+}
+fn d_dt_max() -> f64 {
+    1e-3
+}
+fn d_true() -> bool {
+    true
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ArtificialViscosity {
+    /// α_d (2.55).
+    pub alpha: f64,
+    /// β_d (2.55).
+    pub beta: f64,
+    /// γ_d (2.54), regularises μ_ij.
+    pub gamma: f64,
+    /// Also apply to liquid–liquid pairs (SPEC D-20: off by default).
+    pub liquid: bool,
+}
+impl Default for ArtificialViscosity {
+    fn default() -> Self {
+        ArtificialViscosity { alpha: 1.0, beta: 1.0, gamma: 0.01, liquid: false }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ArtificialStress {
+    /// ε of (2.59); 0 disables the term.
+    pub epsilon: f64,
+    /// Exponent n of f_ij^n (2.60).
+    pub exponent: u32,
+}
+impl Default for ArtificialStress {
+    fn default() -> Self {
+        ArtificialStress { epsilon: 0.3, exponent: 4 }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct Xsph {
+    /// ε̃ for solid particles.
+    pub solid: f64,
+    /// ε̃ for liquid particles.
+    pub liquid: f64,
+}
+impl Default for Xsph {
+    fn default() -> Self {
+        Xsph { solid: 0.5, liquid: 0.0 }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct Cfl {
+    /// Overall factor C_Δt.
+    pub factor: f64,
+    /// Viscous factor of (2.70).
+    pub viscous: f64,
+    /// Sound-speed factor of (2.70) (divides h/(3c)).
+    pub sound: f64,
+    /// Force factor of (2.70) (multiplies sqrt(h/(3a))).
+    pub force: f64,
+    /// Explicit-friction factor (SPEC §5.3).
+    pub friction: f64,
+}
+impl Default for Cfl {
+    fn default() -> Self {
+        Cfl { factor: 1.0, viscous: 0.125, sound: 0.25, force: 0.25, friction: 0.5 }
+    }
+}
+
+/// Which particle set a generator fills.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+pub enum Phase {
+    Liquid,
+    Solid,
+}
+
+/// Initial velocity of generated particles.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub enum InitialVelocity {
+    /// The same velocity [m/s] for every particle.
+    Uniform(V3),
+    /// First clamped–free bending mode of a beam along +x (SPEC §7.2):
+    /// v(x) = amplitude · φ(x − root)/φ(length) along `direction`.
+    CantileverMode { root: f64, length: f64, amplitude: f64, direction: V3 },
+}
+
+/// Particle lattices. All lattices are cell-centred: points at min + (k + ½)Δx, centred in the box when
+/// the extent is not a whole number of spacings. The spacing is the phase's Δx from `numerics`.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub enum Generator {
+    /// A box of one phase (also a slab, a channel or a column). `fraction` is n₀ of (D-2).
+    Box {
+        phase: Phase,
+        min: V3,
+        max: V3,
+        fraction: f64,
+        #[serde(default)]
+        velocity: Option<InitialVelocity>,
+    },
+    /// A ball of one phase.
+    Sphere {
+        phase: Phase,
+        centre: V3,
+        radius: f64,
+        fraction: f64,
+        #[serde(default)]
+        velocity: Option<InitialVelocity>,
+    },
+    /// A perfused block: a solid lattice and an interpenetrating liquid lattice filling the same box.
+    PerfusedBlock { min: V3, max: V3, solid_fraction: f64, liquid_fraction: f64 },
+}
+
+/// How a boundary object moves (SPEC §4.1: analytic x_b(t), v_b(t)).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub enum Motion {
+    Static,
+    /// Constant velocity [m/s] between `start` and `stop` [s]; at rest outside.
+    Translate {
+        velocity: V3,
+        #[serde(default)]
+        start: f64,
+        #[serde(default)]
+        stop: Option<f64>,
+    },
+    /// x_b(t) = x_b(0) + amplitude · sin(2πf t + phase).
+    Oscillate {
+        amplitude: V3,
+        frequency: f64,
+        #[serde(default)]
+        phase: f64,
+    },
+}
+
+/// Density and pressure a boundary particle shows to material particles (SPEC §4.1, D-23).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub enum PressureMode {
+    /// ρ_b := ρ_i, p_b := max(p_i, 0): purely repulsive.
+    Mirror,
+    /// Constant ρ_b [kg/m³] and p_b [Pa] (syringe suction).
+    Prescribed { density: f64, pressure: f64 },
+}
+
+/// A region of space.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub enum Region {
+    Box { min: V3, max: V3 },
+    Sphere { centre: V3, radius: f64 },
+}
+
+/// A rigid object of virtual boundary particles filling `shape` on a lattice of spacing Δx_b.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Boundary {
+    pub name: String,
+    /// Filled with a cell-centred lattice; make it at least R thick (3 layers at R = 2.6Δx).
+    pub shape: Region,
+    /// Lattice spacing Δx_b [m]; default Δx of the solid if there is one, else of the liquid.
+    #[serde(default)]
+    pub spacing: Option<f64>,
+    #[serde(default = "d_static")]
+    pub motion: Motion,
+    #[serde(default = "d_mirror")]
+    pub pressure: PressureMode,
+}
+fn d_static() -> Motion {
+    Motion::Static
+}
+fn d_mirror() -> PressureMode {
+    PressureMode::Mirror
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Relaxation {
+    /// Relaxation time [s] before t = 0.
+    pub duration: f64,
+    /// Velocity damping ζ [1/s]: v ← v(1 − ζΔt).
+    pub damping: f64,
+    /// Gravity on the solid only (the liquid rides along through pressure and friction).
+    #[serde(default)]
+    pub gravity_solid_only: bool,
+}
+
+/// Quantity averaged by a probe.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+pub enum Quantity {
+    PositionX,
+    PositionY,
+    PositionZ,
+    VelocityX,
+    VelocityY,
+    VelocityZ,
+    Density,
+    Pressure,
+    SolidFraction,
+    LiquidFraction,
+}
+
+/// A time series: the mean of `quantity` over the particles of `phase` inside `region` at t = 0.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Probe {
+    pub name: String,
+    pub phase: Phase,
+    pub region: Region,
+    pub quantity: Quantity,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct Output {
+    /// Simulated time between CSV frames [s]; none: only the final frame.
+    #[serde(default)]
+    pub frame_interval: Option<f64>,
+    /// Probes sampled every frame (and at least 200 times per run) into `probes.csv`.
+    #[serde(default)]
+    pub probes: Vec<Probe>,
+}
+
+impl Region {
+    pub fn contains(&self, p: [f64; 3], dims: u32) -> bool {
+        match self {
+            Region::Box { min, max } => (0..dims as usize).all(|a| p[a] >= min[a] && p[a] <= max[a]),
+            Region::Sphere { centre, radius } => {
+                let d2: f64 = (0..dims as usize).map(|a| (p[a] - centre[a]).powi(2)).sum();
+                d2 <= radius * radius
+            }
+        }
+    }
+}

@@ -1,0 +1,522 @@
+//! Parameter validation: every numeric field finite and in its physical range, settings consistent
+//! with each other, and the time-step bounds reachable. Each problem names the field and the fix.
+
+use super::generate::lattice_count;
+use super::{Generator, InitialVelocity, Motion, Phase, PressureMode, Problem, Region, Scenario};
+
+/// Most particles a scenario may generate (all sets together): beyond this a desktop run is absurd.
+pub const MAX_PARTICLES: usize = 20_000_000;
+
+struct Check;
+
+impl Check {
+    fn fail(field: impl Into<String>, problem: impl Into<String>, fix: impl Into<String>) -> Problem {
+        Problem { field: field.into(), problem: problem.into(), fix: fix.into() }
+    }
+    fn finite(field: &str, v: f64) -> Result<(), Problem> {
+        if v.is_finite() {
+            Ok(())
+        } else {
+            Err(Check::fail(field, format!("{v} is not a finite number"), "give a finite value in SI units"))
+        }
+    }
+    fn positive(field: &str, v: f64, fix: &str) -> Result<(), Problem> {
+        Check::finite(field, v)?;
+        if v > 0.0 { Ok(()) } else { Err(Check::fail(field, format!("must be > 0, got {v}"), fix)) }
+    }
+    fn non_negative(field: &str, v: f64, fix: &str) -> Result<(), Problem> {
+        Check::finite(field, v)?;
+        if v >= 0.0 { Ok(()) } else { Err(Check::fail(field, format!("must be ≥ 0, got {v}"), fix)) }
+    }
+    fn range(field: &str, v: f64, lo: f64, hi: f64, fix: &str) -> Result<(), Problem> {
+        Check::finite(field, v)?;
+        if v >= lo && v <= hi {
+            Ok(())
+        } else {
+            Err(Check::fail(field, format!("must lie in [{lo}, {hi}], got {v}"), fix))
+        }
+    }
+    fn vec(field: &str, v: [f64; 3]) -> Result<(), Problem> {
+        for (a, x) in v.iter().enumerate() {
+            Check::finite(&format!("{field}[{a}]"), *x)?;
+        }
+        Ok(())
+    }
+}
+
+pub fn validate(s: &Scenario) -> Result<(), Problem> {
+    if s.dimensions != 2 && s.dimensions != 3 {
+        return Err(Check::fail(
+            "dimensions",
+            format!("must be 2 or 3, got {}", s.dimensions),
+            "write dimensions: 2 or 3",
+        ));
+    }
+    if s.name.trim().is_empty() {
+        return Err(Check::fail("name", "is empty", "give the scenario a short name"));
+    }
+    let d = s.dimensions as usize;
+    Check::vec("domain.min", s.domain.min)?;
+    Check::vec("domain.max", s.domain.max)?;
+    for a in 0..d {
+        if s.domain.max[a] <= s.domain.min[a] {
+            return Err(Check::fail(
+                format!("domain.max[{a}]"),
+                format!("{} is not above domain.min[{a}] = {}", s.domain.max[a], s.domain.min[a]),
+                "make the domain's upper corner larger than its lower corner on every axis",
+            ));
+        }
+    }
+    if d == 2 && s.domain.periodic[2] {
+        return Err(Check::fail("domain.periodic", "z is periodic in a 2-D scenario", "set the third entry to false"));
+    }
+    Check::vec("gravity", s.gravity)?;
+    let g = (s.gravity[0].powi(2) + s.gravity[1].powi(2) + s.gravity[2].powi(2)).sqrt();
+    if g > 1000.0 {
+        return Err(Check::fail("gravity", format!("|g| = {g} m/s² is absurd"), "use m/s², e.g. (0, 0, -9.81)"));
+    }
+    Check::positive("duration", s.duration, "give the simulated time in seconds, e.g. 1.0")?;
+    if s.duration > 1e4 {
+        return Err(Check::fail(
+            "duration",
+            format!("{} s is absurd for an explicit SPH run", s.duration),
+            "use seconds",
+        ));
+    }
+
+    if let Some(l) = &s.liquid {
+        Check::positive("liquid.density", l.density, "give ρ₀ in kg/m³, e.g. 1000")?;
+        Check::non_negative("liquid.viscosity", l.viscosity, "give η in Pa·s, e.g. 0.35")?;
+        Check::finite("liquid.c1", l.c1)?;
+        match (l.stiffness, l.sound_speed) {
+            (Some(_), Some(_)) => {
+                return Err(Check::fail(
+                    "liquid.stiffness",
+                    "both `stiffness` and `sound_speed` are given (contradictory: k = ρ₀c²)",
+                    "keep only one of them",
+                ));
+            }
+            (None, None) => {
+                return Err(Check::fail(
+                    "liquid.sound_speed",
+                    "neither `stiffness` nor `sound_speed` is given",
+                    "add sound_speed: Some(10.0) (m/s) or stiffness: Some(1e5) (Pa)",
+                ));
+            }
+            (Some(k), None) => Check::positive("liquid.stiffness", k, "give k in Pa, e.g. 1e5")?,
+            (None, Some(c)) => Check::positive("liquid.sound_speed", c, "give c in m/s, e.g. 10")?,
+        }
+    }
+    if let Some(m) = &s.solid {
+        Check::positive("solid.density", m.density, "give ρ₀ in kg/m³, e.g. 1000")?;
+        Check::non_negative("solid.c10", m.c10, "Mooney–Rivlin C10 is in Pa and must be ≥ 0")?;
+        Check::non_negative("solid.c01", m.c01, "Mooney–Rivlin C01 is in Pa and must be ≥ 0")?;
+        Check::non_negative("solid.k_s", m.k_s, "give k_s in Pa, e.g. 1e5")?;
+        Check::non_negative("solid.k_sat", m.k_sat, "give k_sat in Pa, e.g. 1e5")?;
+        Check::range("solid.n_sat", m.n_sat, 1e-3, 1.0, "nˢ_sat is a volume fraction, e.g. 0.6")?;
+        Check::non_negative("solid.friction", m.friction, "give K̄ in Pa·s/m², e.g. 1e6")?;
+        if m.k_s + m.k_sat <= 0.0 {
+            return Err(Check::fail(
+                "solid.k_s",
+                "k_s + k_sat = 0: the solid would have no volumetric stiffness",
+                "give k_s > 0",
+            ));
+        }
+    }
+
+    let n = &s.numerics;
+    Check::range("numerics.h_over_dx", n.h_over_dx, 1.0, 2.0, "the thesis allows 1 ≤ h/Δx ≤ 2; 1.3 is usual")?;
+    let mut has_liquid = false;
+    let mut has_solid = false;
+    for g in &s.particles {
+        match g {
+            Generator::Box { phase, .. } | Generator::Sphere { phase, .. } => match phase {
+                Phase::Liquid => has_liquid = true,
+                Phase::Solid => has_solid = true,
+            },
+            Generator::PerfusedBlock { .. } => {
+                has_liquid = true;
+                has_solid = true;
+            }
+        }
+    }
+    if s.particles.is_empty() {
+        return Err(Check::fail(
+            "particles",
+            "no particle generator",
+            "add at least one generator, e.g. Box(phase: Liquid, ...)",
+        ));
+    }
+    if has_liquid && s.liquid.is_none() {
+        return Err(Check::fail(
+            "liquid",
+            "liquid particles are generated but no liquid material is given",
+            "add liquid: Some(Liquid(...))",
+        ));
+    }
+    if has_solid && s.solid.is_none() {
+        return Err(Check::fail(
+            "solid",
+            "solid particles are generated but no solid material is given",
+            "add solid: Some(Solid(...))",
+        ));
+    }
+    let smallest_extent = (0..d).map(|a| s.domain.max[a] - s.domain.min[a]).fold(f64::INFINITY, f64::min);
+    let check_dx = |field: &str, v: Option<f64>, needed: bool| -> Result<Option<f64>, Problem> {
+        match v {
+            None if needed => {
+                Err(Check::fail(field, "is required by the generated particles", "give the lattice spacing in metres"))
+            }
+            None => Ok(None),
+            Some(x) => {
+                Check::positive(field, x, "give the lattice spacing in metres, e.g. 0.001")?;
+                if x > smallest_extent {
+                    return Err(Check::fail(
+                        field,
+                        format!("Δx = {x} m is larger than the domain ({smallest_extent} m)"),
+                        "use a spacing much smaller than the domain",
+                    ));
+                }
+                Ok(Some(x))
+            }
+        }
+    };
+    let dx_l = check_dx("numerics.dx_liquid", n.dx_liquid, has_liquid)?;
+    let dx_s = check_dx("numerics.dx_solid", n.dx_solid, has_solid)?;
+    if let Some(h) = n.h_liquid {
+        Check::positive("numerics.h_liquid", h, "give h in metres")?;
+    }
+    if let Some(h) = n.h_solid {
+        Check::positive("numerics.h_solid", h, "give h in metres")?;
+    }
+    let h_l = dx_l.map(|dx| n.h_liquid.unwrap_or(n.h_over_dx * dx));
+    let h_s = dx_s.map(|dx| n.h_solid.unwrap_or(n.h_over_dx * dx));
+    let r_max = 2.0 * h_l.unwrap_or(0.0).max(h_s.unwrap_or(0.0));
+    for a in 0..d {
+        if s.domain.periodic[a] {
+            let len = s.domain.max[a] - s.domain.min[a];
+            if len < 3.0 * r_max {
+                return Err(Check::fail(
+                    format!("domain.periodic[{a}]"),
+                    format!("periodic length {len} m is shorter than three search radii ({} m)", 3.0 * r_max),
+                    "lengthen the periodic axis or refine Δx",
+                ));
+            }
+        }
+    }
+
+    let av = &n.artificial_viscosity;
+    Check::non_negative("numerics.artificial_viscosity.alpha", av.alpha, "α_d ≥ 0, default 1")?;
+    Check::non_negative("numerics.artificial_viscosity.beta", av.beta, "β_d ≥ 0, default 1")?;
+    Check::positive("numerics.artificial_viscosity.gamma", av.gamma, "γ_d > 0, default 0.01")?;
+    Check::non_negative("numerics.artificial_stress.epsilon", n.artificial_stress.epsilon, "ε ≥ 0, default 0.3")?;
+    if n.artificial_stress.exponent == 0 || n.artificial_stress.exponent > 12 {
+        return Err(Check::fail(
+            "numerics.artificial_stress.exponent",
+            format!("{} is outside 1..=12", n.artificial_stress.exponent),
+            "the thesis uses 4",
+        ));
+    }
+    Check::range("numerics.xsph.solid", n.xsph.solid, 0.0, 1.0, "ε̃ lies in [0, 1], default 0.5")?;
+    Check::range("numerics.xsph.liquid", n.xsph.liquid, 0.0, 1.0, "ε̃ lies in [0, 1], default 0")?;
+    let c = &n.cfl;
+    Check::range("numerics.cfl.factor", c.factor, 1e-3, 2.0, "C_Δt near 1")?;
+    Check::range("numerics.cfl.viscous", c.viscous, 1e-4, 1.0, "thesis: 0.125")?;
+    Check::range("numerics.cfl.sound", c.sound, 1e-4, 1.0, "thesis: 0.25")?;
+    Check::range("numerics.cfl.force", c.force, 1e-4, 1.0, "thesis: 0.25")?;
+    Check::range("numerics.cfl.friction", c.friction, 1e-4, 2.0, "default 0.5")?;
+    Check::positive("numerics.dt_min", n.dt_min, "give seconds, e.g. 1e-9")?;
+    Check::positive("numerics.dt_max", n.dt_max, "give seconds, e.g. 1e-3")?;
+    if n.dt_max < n.dt_min {
+        return Err(Check::fail(
+            "numerics.dt_max",
+            format!("{} s is below dt_min = {} s", n.dt_max, n.dt_min),
+            "make dt_max ≥ dt_min",
+        ));
+    }
+    if let Some(v) = n.sound_speed_liquid {
+        Check::positive("numerics.sound_speed_liquid", v, "m/s")?;
+    }
+    if let Some(v) = n.sound_speed_solid {
+        Check::positive("numerics.sound_speed_solid", v, "m/s")?;
+    }
+    if let Some(v) = n.max_speed {
+        Check::positive("numerics.max_speed", v, "m/s")?;
+    }
+
+    // A-priori time-step bound from the sound and viscous limits of (2.70): a dt_min above it, or a
+    // fixed step beyond it, can never be met.
+    let mut bound = f64::INFINITY;
+    let mut c_max: f64 = 0.0;
+    if let (Some(l), Some(h)) = (&s.liquid, h_l) {
+        let k = l.stiffness.unwrap_or_else(|| l.density * l.sound_speed.unwrap_or(0.0).powi(2));
+        let cl = n.sound_speed_liquid.unwrap_or((k / l.density).sqrt());
+        c_max = c_max.max(cl);
+        if l.viscosity > 0.0 {
+            // Smallest apparent density expected: the smallest liquid fraction generated.
+            let n0 = min_fraction(s, Phase::Liquid).unwrap_or(1.0);
+            bound = bound.min(c.viscous * n0 * l.density * h * h / l.viscosity);
+        }
+    }
+    if let (Some(m), Some(_)) = (&s.solid, h_s) {
+        let n0 = min_fraction(s, Phase::Solid).unwrap_or(1.0);
+        let g_mod = 2.0 * (m.c10 + m.c01);
+        let cs = n
+            .sound_speed_solid
+            .unwrap_or(((m.k_s + m.k_sat) / m.density + 4.0 / 3.0 * g_mod / (n0 * m.density)).sqrt());
+        c_max = c_max.max(cs);
+    }
+    let h_min = h_l.unwrap_or(f64::INFINITY).min(h_s.unwrap_or(f64::INFINITY));
+    if c_max > 0.0 {
+        bound = bound.min(c.sound * h_min / (3.0 * c_max));
+    }
+    bound = bound.min(n.dt_max) * c.factor;
+    if bound < n.dt_min {
+        return Err(Check::fail(
+            "numerics.dt_min",
+            format!(
+                "the sound/viscous limit of (2.70) gives Δt ≤ {bound:.3e} s, below dt_min = {:.3e} s: it can never be met",
+                n.dt_min
+            ),
+            "lower dt_min, coarsen Δx or lower the sound speed",
+        ));
+    }
+    if let Some(f) = n.fixed_dt {
+        Check::positive("numerics.fixed_dt", f, "give seconds")?;
+        if f > 1.05 * bound {
+            return Err(Check::fail(
+                "numerics.fixed_dt",
+                format!("{f:.3e} s exceeds the stability bound {bound:.3e} s by more than 5 %"),
+                "remove fixed_dt or make it smaller",
+            ));
+        }
+    }
+    let steps = s.duration / bound;
+    if steps > 1e10 {
+        return Err(Check::fail("duration", format!("needs ≈ {steps:.2e} steps"), "shorten the run or coarsen Δx"));
+    }
+
+    // Generators, boundaries and regions.
+    let mut total = 0usize;
+    let mut fractions: [Option<f64>; 2] = [None, None];
+    for (i, g) in s.particles.iter().enumerate() {
+        let f = format!("particles[{i}]");
+        let (count, phase_fracs): (usize, Vec<(Phase, f64)>) = match g {
+            Generator::Box { phase, min, max, fraction, velocity } => {
+                check_box(&f, *min, *max, d, s)?;
+                Check::range(&format!("{f}.fraction"), *fraction, 1e-3, 1.0, "n₀ is a volume fraction in (0, 1]")?;
+                check_velocity(&f, velocity)?;
+                let dx = phase_dx(*phase, dx_l, dx_s);
+                (lattice_count(&super::Region::Box { min: *min, max: *max }, dx, d), vec![(*phase, *fraction)])
+            }
+            Generator::Sphere { phase, centre, radius, fraction, velocity } => {
+                Check::vec(&format!("{f}.centre"), *centre)?;
+                Check::positive(&format!("{f}.radius"), *radius, "give the radius in metres")?;
+                Check::range(&format!("{f}.fraction"), *fraction, 1e-3, 1.0, "n₀ is a volume fraction in (0, 1]")?;
+                check_velocity(&f, velocity)?;
+                let dx = phase_dx(*phase, dx_l, dx_s);
+                (
+                    lattice_count(&super::Region::Sphere { centre: *centre, radius: *radius }, dx, d),
+                    vec![(*phase, *fraction)],
+                )
+            }
+            Generator::PerfusedBlock { min, max, solid_fraction, liquid_fraction } => {
+                check_box(&f, *min, *max, d, s)?;
+                Check::range(
+                    &format!("{f}.solid_fraction"),
+                    *solid_fraction,
+                    1e-3,
+                    1.0,
+                    "a volume fraction, e.g. 0.6",
+                )?;
+                Check::range(
+                    &format!("{f}.liquid_fraction"),
+                    *liquid_fraction,
+                    1e-3,
+                    1.0,
+                    "a volume fraction, e.g. 0.4",
+                )?;
+                if solid_fraction + liquid_fraction > 1.0 + 1e-9 {
+                    return Err(Check::fail(
+                        format!("{f}.liquid_fraction"),
+                        format!("nˢ + nˡ = {} exceeds 1 (saturation (2.1))", solid_fraction + liquid_fraction),
+                        "make the fractions sum to at most 1",
+                    ));
+                }
+                let r = super::Region::Box { min: *min, max: *max };
+                (
+                    lattice_count(&r, phase_dx(Phase::Solid, dx_l, dx_s), d)
+                        + lattice_count(&r, phase_dx(Phase::Liquid, dx_l, dx_s), d),
+                    vec![(Phase::Solid, *solid_fraction), (Phase::Liquid, *liquid_fraction)],
+                )
+            }
+        };
+        if count == 0 {
+            return Err(Check::fail(
+                f,
+                "generates zero particles (the region is thinner than one lattice spacing)",
+                "enlarge the region or refine Δx",
+            ));
+        }
+        for (phase, fr) in phase_fracs {
+            let slot = &mut fractions[phase as usize];
+            match slot {
+                Some(prev) if (*prev - fr).abs() > 1e-12 => {
+                    return Err(Check::fail(
+                        format!("{f}.fraction"),
+                        format!(
+                            "{phase:?} particles use fraction {fr} here and {prev} elsewhere: each phase has one particle mass"
+                        ),
+                        "use one initial fraction per phase",
+                    ));
+                }
+                _ => *slot = Some(fr),
+            }
+        }
+        total += count;
+    }
+    for (i, b) in s.boundaries.iter().enumerate() {
+        let f = format!("boundaries[{i}]");
+        if let Some(sp) = b.spacing {
+            Check::positive(&format!("{f}.spacing"), sp, "give Δx_b in metres")?;
+        }
+        let sp = b.spacing.or(dx_s).or(dx_l).unwrap_or(1.0);
+        check_region(&format!("{f}.shape"), &b.shape)?;
+        let count = lattice_count(&b.shape, sp, d);
+        if count == 0 {
+            return Err(Check::fail(
+                f,
+                format!("boundary `{}` generates zero particles", b.name),
+                "make the shape at least one spacing thick",
+            ));
+        }
+        total += count;
+        match &b.motion {
+            Motion::Static => {}
+            Motion::Translate { velocity, start, stop } => {
+                Check::vec(&format!("{f}.motion.velocity"), *velocity)?;
+                Check::non_negative(&format!("{f}.motion.start"), *start, "seconds")?;
+                if let Some(st) = stop
+                    && *st < *start
+                {
+                    return Err(Check::fail(format!("{f}.motion.stop"), "stop is before start", "make stop ≥ start"));
+                }
+            }
+            Motion::Oscillate { amplitude, frequency, phase } => {
+                Check::vec(&format!("{f}.motion.amplitude"), *amplitude)?;
+                Check::positive(&format!("{f}.motion.frequency"), *frequency, "Hz")?;
+                Check::finite(&format!("{f}.motion.phase"), *phase)?;
+            }
+        }
+        if let PressureMode::Prescribed { density, pressure } = &b.pressure {
+            Check::positive(&format!("{f}.pressure.density"), *density, "kg/m³")?;
+            Check::finite(&format!("{f}.pressure.pressure"), *pressure)?;
+        }
+    }
+    for (i, r) in s.fixed_regions.iter().enumerate() {
+        check_region(&format!("fixed_regions[{i}]"), r)?;
+        if s.solid.is_none() {
+            return Err(Check::fail(
+                format!("fixed_regions[{i}]"),
+                "fixed regions hold solid particles, but there is no solid",
+                "remove it or add solid particles",
+            ));
+        }
+    }
+    if total > MAX_PARTICLES {
+        return Err(Check::fail(
+            "particles",
+            format!("≈ {total} particles exceed the limit of {MAX_PARTICLES}"),
+            "coarsen Δx with --set numerics.dx_…",
+        ));
+    }
+    if let Some(r) = &s.relaxation {
+        Check::non_negative("relaxation.duration", r.duration, "seconds")?;
+        Check::non_negative("relaxation.damping", r.damping, "1/s, e.g. 20")?;
+    }
+    if let Some(fi) = s.output.frame_interval {
+        Check::positive("output.frame_interval", fi, "seconds between frames")?;
+        if s.duration / fi > 1e5 {
+            return Err(Check::fail(
+                "output.frame_interval",
+                format!("{} frames would be written", s.duration / fi),
+                "use a larger interval",
+            ));
+        }
+    }
+    for (i, p) in s.output.probes.iter().enumerate() {
+        check_region(&format!("output.probes[{i}].region"), &p.region)?;
+    }
+    Ok(())
+}
+
+fn min_fraction(s: &Scenario, want: Phase) -> Option<f64> {
+    s.particles
+        .iter()
+        .filter_map(|g| match g {
+            Generator::Box { phase, fraction, .. } | Generator::Sphere { phase, fraction, .. } if *phase == want => {
+                Some(*fraction)
+            }
+            Generator::PerfusedBlock { solid_fraction, liquid_fraction, .. } => {
+                Some(if want == Phase::Solid { *solid_fraction } else { *liquid_fraction })
+            }
+            _ => None,
+        })
+        .reduce(f64::min)
+}
+
+fn phase_dx(p: Phase, dx_l: Option<f64>, dx_s: Option<f64>) -> f64 {
+    match p {
+        Phase::Liquid => dx_l.unwrap_or(1.0),
+        Phase::Solid => dx_s.unwrap_or(1.0),
+    }
+}
+
+fn check_box(f: &str, min: [f64; 3], max: [f64; 3], d: usize, s: &Scenario) -> Result<(), Problem> {
+    Check::vec(&format!("{f}.min"), min)?;
+    Check::vec(&format!("{f}.max"), max)?;
+    for a in 0..d {
+        if max[a] <= min[a] {
+            return Err(Check::fail(
+                format!("{f}.max[{a}]"),
+                format!("{} is not above min {}", max[a], min[a]),
+                "give max > min on every axis",
+            ));
+        }
+        let eps = 1e-9 * (s.domain.max[a] - s.domain.min[a]);
+        if min[a] < s.domain.min[a] - eps || max[a] > s.domain.max[a] + eps {
+            return Err(Check::fail(
+                f,
+                format!("extends outside the domain on axis {a}"),
+                "keep generators inside `domain`",
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn check_region(f: &str, r: &Region) -> Result<(), Problem> {
+    match r {
+        Region::Box { min, max } => {
+            Check::vec(&format!("{f}.min"), *min)?;
+            Check::vec(&format!("{f}.max"), *max)
+        }
+        Region::Sphere { centre, radius } => {
+            Check::vec(&format!("{f}.centre"), *centre)?;
+            Check::positive(&format!("{f}.radius"), *radius, "metres")
+        }
+    }
+}
+
+fn check_velocity(f: &str, v: &Option<InitialVelocity>) -> Result<(), Problem> {
+    match v {
+        None => Ok(()),
+        Some(InitialVelocity::Uniform(u)) => Check::vec(&format!("{f}.velocity"), *u),
+        Some(InitialVelocity::CantileverMode { root, length, amplitude, direction }) => {
+            Check::finite(&format!("{f}.velocity.root"), *root)?;
+            Check::positive(&format!("{f}.velocity.length"), *length, "metres")?;
+            Check::finite(&format!("{f}.velocity.amplitude"), *amplitude)?;
+            Check::vec(&format!("{f}.velocity.direction"), *direction)
+        }
+    }
+}

@@ -1,0 +1,108 @@
+//! Densities, volume fractions and penalty pressures — twin of `shaders/density.wgsl`.
+//!
+//! * `density_liquid`: ρˡ by summation over L ∪ B_l (2.46), nˡ = ρ/ρ₀ˡ, nˢ by summation of the solid
+//!   (SPEC D-8), pˡ = k_sat(nˢ + nˡ − 1 + C₁nˢnˡ) (2.53)/(3.5, D-9), clamped at 0 unless
+//!   `liquid_tension` (the liquid sustains no tension; README: deviations from SPEC).
+//! * `density_solid`: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
+//!   nˡ by summation of the liquid (membrane override 1 − nˢ_sat, §3.1.3),
+//!   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52).
+
+use super::{BoundarySet, LiquidSet, Nbrs, SolidSet};
+use crate::scenario::SolidFlags;
+use crate::sim::params::Params;
+use rayon::prelude::*;
+
+/// Returns (ρ, nˢ, p) for every liquid particle.
+pub fn density_liquid(
+    p: &Params,
+    l: &LiquidSet,
+    s: &SolidSet,
+    b: &BoundarySet,
+    nb: &Nbrs,
+) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+    let kl = &p.k_liquid;
+    let kx = &p.k_cross;
+    let out: Vec<(f32, f32, f32)> = (0..l.x.len())
+        .into_par_iter()
+        .with_min_len(super::MIN_PAR_LEN)
+        .map(|i| {
+            let xi = l.x[i];
+            let mut rho = 0.0f32;
+            nb.liquid.for_each(xi, kl.r, |j, _, r| rho += l.m[j] * kl.w_poly6(r));
+            nb.boundary.for_each(xi, kl.r, |j, _, r| rho += b.m_l[j] * kl.w_poly6(r));
+            nb.solid.for_each(xi, kl.r, |j, _, r| {
+                if s.flags[j] & SolidFlags::MEMBRANE != 0 {
+                    rho += s.m_bl[j] * kl.w_poly6(r);
+                }
+            });
+            let mut sum_s = 0.0f32;
+            nb.solid.for_each(xi, kx.r, |j, _, r| sum_s += s.m[j] * kx.w_poly6(r));
+            let n_s = sum_s / p.rho0_s;
+            let n_l = rho / p.rho0_l;
+            let raw = p.k_l * (n_s + n_l - 1.0 + p.c1 * n_s * n_l);
+            let pr = if p.liquid_tension { raw } else { raw.max(0.0) };
+            (rho, n_s, pr)
+        })
+        .collect();
+    let mut rho = Vec::with_capacity(out.len());
+    let mut n_s = Vec::with_capacity(out.len());
+    let mut pr = Vec::with_capacity(out.len());
+    for (a, b, c) in out {
+        rho.push(a);
+        n_s.push(b);
+        pr.push(c);
+    }
+    (rho, n_s, pr)
+}
+
+/// Returns (dρ/dt, nˡ, nˢ, p) for every solid particle.
+pub fn density_solid(
+    p: &Params,
+    s: &SolidSet,
+    l: &LiquidSet,
+    b: &BoundarySet,
+    nb: &Nbrs,
+) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<f32>) {
+    let ks = &p.k_solid;
+    let kx = &p.k_cross;
+    let support = 2.0 * ks.h;
+    let n_l_membrane = 1.0 - p.n_sat;
+    let out: Vec<(f32, f32, f32, f32)> = (0..s.x.len())
+        .into_par_iter()
+        .with_min_len(super::MIN_PAR_LEN)
+        .map(|i| {
+            let xi = s.x[i];
+            let vi = s.v[i];
+            let mut drho = 0.0f32;
+            nb.solid.for_each(xi, support, |j, xij, r| {
+                if j != i {
+                    drho += s.m[j] * (vi - s.v[j]).dot(xij * ks.grad_cubic_factor(r));
+                }
+            });
+            nb.boundary.for_each(xi, support, |j, xij, r| {
+                drho += b.m_s[j] * (vi - b.v[j]).dot(xij * ks.grad_cubic_factor(r));
+            });
+            let n_l = if s.flags[i] & SolidFlags::MEMBRANE != 0 {
+                n_l_membrane
+            } else {
+                let mut sum = 0.0f32;
+                nb.liquid.for_each(xi, kx.r, |j, _, r| sum += l.m[j] * kx.w_poly6(r));
+                sum / p.rho0_l
+            };
+            let n_s = s.rho[i] / p.rho0_s;
+            let pr = p.k_s * (n_s - p.n_sat) + p.k_sat * (n_s + n_l - 1.0);
+            (drho, n_l, n_s, pr)
+        })
+        .collect();
+    let mut a = Vec::with_capacity(out.len());
+    let mut bb = Vec::with_capacity(out.len());
+    let mut c = Vec::with_capacity(out.len());
+    let mut d = Vec::with_capacity(out.len());
+    for (w, x, y, z) in out {
+        a.push(w);
+        bb.push(x);
+        c.push(y);
+        d.push(z);
+    }
+    (a, bb, c, d)
+}

@@ -1,0 +1,136 @@
+//! Uniform-grid neighbour search (thesis §2.2.5, §2.2.9) — twin of `shaders/grid.wgsl`.
+//!
+//! Each particle set (liquid, solid, boundary) is binned into the same grid by a counting sort:
+//! cell index → count → exclusive prefix sum → scatter. The scatter visits particles in ascending
+//! index, so inside a cell particles stay in ascending order: neighbour sums always run over the 27
+//! (9 in 2-D) cells in a fixed offset order, then ascending index — the canonical order both back-ends
+//! follow, which makes runs bit-reproducible.
+
+use crate::sim::params::GridDims;
+use glam::Vec3;
+
+/// Cell-sorted view of one particle set.
+#[derive(Clone, Debug, Default)]
+pub struct CellList {
+    /// Particle indices sorted by cell, ascending index inside a cell.
+    pub order: Vec<u32>,
+    /// `cell_start[c]..cell_start[c + 1]` is the range of `order` in cell c.
+    pub cell_start: Vec<u32>,
+    /// Particles found outside the domain (clamped into the border cells).
+    pub outside: u32,
+}
+
+/// Integer cell coordinates of a position (clamped into the grid); the bool says whether it was inside.
+#[inline]
+pub fn grid_cell_coords(g: &GridDims, x: Vec3) -> ([i32; 3], bool) {
+    let mut c = [0i32; 3];
+    let mut inside = true;
+    for a in 0..3 {
+        let f = ((x[a] - g.min[a]) / g.cell[a]).floor();
+        let n = g.n[a] as i32;
+        let k = if f.is_finite() { f as i32 } else { 0 };
+        if k < 0 || k >= n {
+            inside = false;
+        }
+        c[a] = k.clamp(0, n - 1);
+    }
+    (c, inside)
+}
+
+#[inline]
+pub fn grid_cell_index(g: &GridDims, c: [i32; 3]) -> usize {
+    (c[0] as usize) + g.n[0] as usize * ((c[1] as usize) + g.n[1] as usize * c[2] as usize)
+}
+
+/// grid_count · grid_scan · grid_scatter: builds the cell list of one set.
+pub fn grid_build(g: &GridDims, pos: &[Vec3], out: &mut CellList) {
+    let cells = g.cell_count();
+    out.cell_start.clear();
+    out.cell_start.resize(cells + 1, 0);
+    out.outside = 0;
+    let mut cell_of = Vec::with_capacity(pos.len());
+    for x in pos {
+        let (c, inside) = grid_cell_coords(g, *x);
+        if !inside {
+            out.outside += 1;
+        }
+        let ci = grid_cell_index(g, c);
+        cell_of.push(ci as u32);
+        out.cell_start[ci + 1] += 1;
+    }
+    for c in 0..cells {
+        out.cell_start[c + 1] += out.cell_start[c];
+    }
+    let mut cursor: Vec<u32> = out.cell_start[..cells].to_vec();
+    out.order.clear();
+    out.order.resize(pos.len(), 0);
+    for (i, &c) in cell_of.iter().enumerate() {
+        let slot = &mut cursor[c as usize];
+        out.order[*slot as usize] = i as u32;
+        *slot += 1;
+    }
+}
+
+/// Neighbour query over one cell-sorted set.
+pub struct Neighbours<'a> {
+    pub grid: &'a GridDims,
+    pub list: &'a CellList,
+    pub pos: &'a [Vec3],
+    /// Periodic length per axis, 0 where not periodic.
+    pub period: Vec3,
+    pub three_d: bool,
+}
+
+/// Minimum-image difference x_i − x_j on periodic axes (SPEC §4.3).
+#[inline]
+pub fn min_image(mut d: Vec3, period: Vec3) -> Vec3 {
+    for a in 0..3 {
+        let l = period[a];
+        if l > 0.0 {
+            d[a] -= l * (d[a] / l).round();
+        }
+    }
+    d
+}
+
+impl Neighbours<'_> {
+    /// Calls `f(j, x_ij, r_ij)` for every particle j of the set with r_ij < radius, in canonical order.
+    #[inline]
+    pub fn for_each(&self, xi: Vec3, radius: f32, mut f: impl FnMut(usize, Vec3, f32)) {
+        let g = self.grid;
+        let (c, _) = grid_cell_coords(g, xi);
+        let zr = if self.three_d { -1..=1 } else { 0..=0 };
+        let r2max = radius * radius;
+        for dz in zr {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let mut nc = [c[0] + dx, c[1] + dy, c[2] + dz];
+                    let mut skip = false;
+                    for a in 0..3 {
+                        let n = g.n[a] as i32;
+                        if nc[a] < 0 || nc[a] >= n {
+                            if self.period[a] > 0.0 {
+                                nc[a] = nc[a].rem_euclid(n);
+                            } else {
+                                skip = true;
+                            }
+                        }
+                    }
+                    if skip {
+                        continue;
+                    }
+                    let ci = grid_cell_index(g, nc);
+                    let (s, e) = (self.list.cell_start[ci] as usize, self.list.cell_start[ci + 1] as usize);
+                    for &j in &self.list.order[s..e] {
+                        let j = j as usize;
+                        let xij = min_image(xi - self.pos[j], self.period);
+                        let r2 = xij.length_squared();
+                        if r2 < r2max {
+                            f(j, xij, r2.sqrt());
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

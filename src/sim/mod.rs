@@ -1,0 +1,202 @@
+//! How a scenario is simulated: one [`Simulation`] API over the back-ends. `cpu` is the rayon reference
+//! solver (test oracle, benchmark baseline); the GPU back-end implements the same passes in WGSL.
+//!
+//! Commands are the only way in ([`Simulation::apply`]); state comes out by readback
+//! ([`Simulation::read_state`]). A diverging run (non-finite values, runaway velocity, collapsing Δt)
+//! returns [`SimError::Diverged`] and keeps the last good state.
+
+pub mod cpu;
+pub mod kernels;
+pub mod params;
+pub mod state;
+
+use crate::scenario::{Motion, Scenario, ScenarioError, V3};
+use params::Params;
+use serde::Serialize;
+pub use state::State;
+
+/// Which term of (2.70) (or our additions) limited a time step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DtLimit {
+    Viscous,
+    Sound,
+    Force,
+    Friction,
+    Max,
+    Fixed,
+}
+
+impl DtLimit {
+    pub const ALL: [DtLimit; 6] =
+        [DtLimit::Viscous, DtLimit::Sound, DtLimit::Force, DtLimit::Friction, DtLimit::Max, DtLimit::Fixed];
+    pub fn name(self) -> &'static str {
+        match self {
+            DtLimit::Viscous => "viscous",
+            DtLimit::Sound => "sound",
+            DtLimit::Force => "force",
+            DtLimit::Friction => "friction",
+            DtLimit::Max => "dt_max",
+            DtLimit::Fixed => "fixed",
+        }
+    }
+}
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepInfo {
+    pub t: f64,
+    pub dt: f32,
+    pub limit: DtLimit,
+    pub broken_bonds: u64,
+}
+
+/// Commands: the only way to change a running simulation (viewer input, replay, scripted tests).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Command {
+    /// Replace the motion of boundary object `object`; it continues from its current pose.
+    SetBoundaryMotion { object: usize, motion: Motion },
+    /// Body-force acceleration [m/s²].
+    SetGravity(V3),
+    /// Velocity damping ζ [1/s] (relaxation), and whether gravity acts on the solid only.
+    SetDamping { damping: f64, gravity_solid_only: bool },
+    /// Set the simulation clock [s] (boundary motions are evaluated at max(t, 0)).
+    SetTime(f64),
+}
+
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    #[error(
+        "simulation diverged at step {step} (t = {t:.6} s), particle {particle}: {reason}; the last good state is kept"
+    )]
+    Diverged { step: u64, t: f64, particle: String, reason: String },
+    #[error("invalid command: {0}")]
+    BadCommand(String),
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    #[error("GPU back-end: {0}")]
+    Gpu(String),
+    #[error("out of resources: {0}")]
+    Resources(String),
+}
+
+/// Which back-end runs the step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BackendKind {
+    Cpu,
+}
+
+/// Running statistics of a simulation (for `summary.json`).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RunStats {
+    pub steps: u64,
+    pub dt_min: f64,
+    pub dt_max: f64,
+    /// How often each criterion limited Δt, by `DtLimit::name`.
+    pub dt_limited_by: std::collections::BTreeMap<String, u64>,
+    pub broken_bonds: u64,
+}
+
+enum Engine {
+    Cpu(Box<cpu::CpuSolver>),
+}
+
+/// A running simulation of one scenario on one back-end.
+pub struct Simulation {
+    engine: Engine,
+    scenario: Scenario,
+    stats: RunStats,
+}
+
+impl Simulation {
+    pub fn new(scenario: &Scenario, backend: BackendKind) -> Result<Simulation, SimError> {
+        scenario.validate("(scenario)")?;
+        let generated = crate::scenario::generate(scenario);
+        let params = Params::new(scenario, &generated);
+        let engine = match backend {
+            BackendKind::Cpu => Engine::Cpu(Box::new(cpu::CpuSolver::new(params, &generated)?)),
+        };
+        Ok(Simulation {
+            engine,
+            scenario: scenario.clone(),
+            stats: RunStats { dt_min: f64::INFINITY, ..Default::default() },
+        })
+    }
+
+    pub fn scenario(&self) -> &Scenario {
+        &self.scenario
+    }
+
+    pub fn params(&self) -> &Params {
+        match &self.engine {
+            Engine::Cpu(c) => &c.params,
+        }
+    }
+
+    pub fn time(&self) -> f64 {
+        match &self.engine {
+            Engine::Cpu(c) => c.st.t,
+        }
+    }
+
+    pub fn stats(&self) -> &RunStats {
+        &self.stats
+    }
+
+    /// Advances one time step.
+    pub fn step(&mut self) -> Result<StepInfo, SimError> {
+        let info = match &mut self.engine {
+            Engine::Cpu(c) => c.step()?,
+        };
+        let s = &mut self.stats;
+        s.steps += 1;
+        s.dt_min = s.dt_min.min(info.dt as f64);
+        s.dt_max = s.dt_max.max(info.dt as f64);
+        *s.dt_limited_by.entry(info.limit.name().to_string()).or_insert(0) += 1;
+        s.broken_bonds += info.broken_bonds;
+        Ok(info)
+    }
+
+    /// Steps until the clock reaches `t_end` (or `max_steps` steps), calling `progress(t)` after each.
+    pub fn advance_until(
+        &mut self,
+        t_end: f64,
+        max_steps: u64,
+        mut progress: impl FnMut(f64),
+    ) -> Result<u64, SimError> {
+        let mut n = 0;
+        while self.time() < t_end && n < max_steps {
+            let info = self.step()?;
+            progress(info.t);
+            n += 1;
+        }
+        Ok(n)
+    }
+
+    /// Runs the scenario's damped relaxation (SPEC §7.5), if any, ending with the clock at t = 0.
+    pub fn relax(&mut self, mut progress: impl FnMut(f64)) -> Result<(), SimError> {
+        let Some(r) = self.scenario.relaxation.clone() else { return Ok(()) };
+        if r.duration <= 0.0 {
+            return Ok(());
+        }
+        self.apply(&Command::SetTime(-r.duration))?;
+        self.apply(&Command::SetDamping { damping: r.damping, gravity_solid_only: r.gravity_solid_only })?;
+        self.advance_until(0.0, u64::MAX, &mut progress)?;
+        self.apply(&Command::SetDamping { damping: 0.0, gravity_solid_only: false })?;
+        self.apply(&Command::SetTime(0.0))?;
+        Ok(())
+    }
+
+    pub fn apply(&mut self, cmd: &Command) -> Result<(), SimError> {
+        match &mut self.engine {
+            Engine::Cpu(c) => c.apply(cmd),
+        }
+    }
+
+    pub fn read_state(&mut self) -> Result<State, SimError> {
+        match &self.engine {
+            Engine::Cpu(c) => Ok(c.read_state()),
+        }
+    }
+}

@@ -1,0 +1,256 @@
+//! Derived, backend-independent step parameters: kernels per neighbour relation, stiffnesses, signal
+//! speeds (SPEC D-27), κ_V (D-7), grid geometry. Built once from a validated scenario; both back-ends
+//! read the same numbers (the GPU copies them into its `StepUniforms` block).
+
+use super::kernels::{Dim, Kernel, viscous_normalisation};
+use crate::scenario::{GeneratedParticles, Scenario};
+use glam::Vec3;
+
+/// Step parameters in f32, as both back-ends use them.
+#[derive(Clone, Debug)]
+pub struct Params {
+    pub dim: Dim,
+    /// Liquid–liquid and liquid–boundary kernels (R_l = 2h_l).
+    pub k_liquid: Kernel,
+    /// Solid–solid and solid–boundary kernels (cubic spline with h_s).
+    pub k_solid: Kernel,
+    /// Cross-phase kernel, R_× = max(R_s, R_l) (SPEC §2.1, D-3).
+    pub k_cross: Kernel,
+    pub dx_solid: f32,
+    /// W_C(Δx_s; h_s), denominator of f_ij (2.60).
+    pub wc_dx: f32,
+    pub rho0_l: f32,
+    pub rho0_s: f32,
+    pub eta: f32,
+    /// Liquid penalty stiffness of (2.53) [Pa].
+    pub k_l: f32,
+    pub c1: f32,
+    /// Allow negative liquid pressure (`numerics.liquid_tension`).
+    pub liquid_tension: bool,
+    pub k_s: f32,
+    pub k_sat: f32,
+    pub n_sat: f32,
+    pub c10: f32,
+    pub c01: f32,
+    /// K̄ [Pa·s/m²].
+    pub kbar: f32,
+    /// Signal speeds [m/s].
+    pub c_l: f32,
+    pub c_s: f32,
+    pub av_alpha: f32,
+    pub av_beta: f32,
+    pub av_gamma: f32,
+    pub av_liquid: bool,
+    pub as_eps: f32,
+    pub as_exp: i32,
+    pub xsph_s: f32,
+    pub xsph_l: f32,
+    pub kappa_v: f32,
+    pub gravity: Vec3,
+    /// Reference apparent densities n₀ρ₀ of each phase (friction time-step bound).
+    pub rho_ref_l: f32,
+    pub rho_ref_s: f32,
+    pub cfl_factor: f32,
+    pub cfl_viscous: f32,
+    pub cfl_sound: f32,
+    pub cfl_force: f32,
+    pub cfl_friction: f32,
+    pub dt_min: f32,
+    pub dt_max: f32,
+    pub fixed_dt: Option<f32>,
+    pub max_speed: f32,
+    /// Simulation coordinates are relative to this point (SPEC §5.4: f32 positions near 0).
+    pub origin: [f64; 3],
+    /// Domain in simulation coordinates.
+    pub domain_min: Vec3,
+    pub domain_max: Vec3,
+    pub periodic: [bool; 3],
+    pub grid: GridDims,
+    pub has_liquid: bool,
+    pub has_solid: bool,
+    /// Some solid particle is not kinematic.
+    pub solid_dynamic: bool,
+}
+
+/// Uniform background grid (cells of edge ≥ the largest search radius).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridDims {
+    pub n: [u32; 3],
+    pub cell: [f32; 3],
+    pub min: Vec3,
+}
+
+impl GridDims {
+    pub fn cell_count(&self) -> usize {
+        self.n.iter().map(|&x| x as usize).product()
+    }
+}
+
+impl Params {
+    pub fn new(s: &Scenario, g: &GeneratedParticles) -> Params {
+        let dim = s.dim();
+        let n = &s.numerics;
+        let has_liquid = !g.liquid.pos.is_empty();
+        let has_solid = !g.solid.pos.is_empty();
+        // A skeleton held entirely still (Brinkman) moves nothing: its wave speed sets no time step.
+        let solid_dynamic = g.solid_flags.iter().any(|f| f & crate::scenario::SolidFlags::KINEMATIC == 0);
+        // Absent phases still get harmless, finite kernels so that uniform blocks stay valid.
+        let h_l = if g.h_liquid > 0.0 { g.h_liquid } else { g.h_solid };
+        let h_s = if g.h_solid > 0.0 { g.h_solid } else { g.h_liquid };
+        let h_x = h_l.max(h_s);
+        let (rho0_l, eta, k_l, c1) = match &s.liquid {
+            Some(l) => (
+                l.density,
+                l.viscosity,
+                l.stiffness.unwrap_or_else(|| l.density * l.sound_speed.unwrap_or(0.0).powi(2)),
+                l.c1,
+            ),
+            None => (1000.0, 0.0, 0.0, 0.0),
+        };
+        let (rho0_s, c10, c01, k_s, k_sat, n_sat, kbar) = match &s.solid {
+            Some(m) => (m.density, m.c10, m.c01, m.k_s, m.k_sat, m.n_sat, m.friction),
+            None => (1000.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0),
+        };
+        let c_l = n.sound_speed_liquid.unwrap_or((k_l / rho0_l).sqrt());
+        let g_mod = 2.0 * (c10 + c01);
+        let n0s = if g.fraction_solid > 0.0 { g.fraction_solid } else { 1.0 };
+        let c_s = n.sound_speed_solid.unwrap_or(((k_s + k_sat) / rho0_s + 4.0 / 3.0 * g_mod / (n0s * rho0_s)).sqrt());
+        let c_max = if has_liquid { c_l } else { 0.0 }.max(if solid_dynamic { c_s } else { 0.0 });
+        let max_boundary_speed = s
+            .boundaries
+            .iter()
+            .map(|b| match &b.motion {
+                crate::scenario::Motion::Static => 0.0,
+                crate::scenario::Motion::Translate { velocity, .. } => norm(*velocity),
+                crate::scenario::Motion::Oscillate { amplitude, frequency, .. } => {
+                    norm(*amplitude) * 2.0 * std::f64::consts::PI * frequency
+                }
+            })
+            .fold(0.0, f64::max);
+        let max_speed = n.max_speed.unwrap_or(20.0 * c_max.max(max_boundary_speed).max(1e-6));
+        let kappa_v = if n.viscous_laplacian_normalisation && has_liquid {
+            viscous_normalisation(g.dx_liquid, 2.0 * h_l, dim)
+        } else {
+            1.0
+        };
+        let d = s.dimensions as usize;
+        let mut origin = [0.0; 3];
+        for a in 0..d {
+            origin[a] = 0.5 * (s.domain.min[a] + s.domain.max[a]);
+        }
+        let to_sim =
+            |p: [f64; 3]| Vec3::new((p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32);
+        let mut domain_min = to_sim(s.domain.min);
+        let mut domain_max = to_sim(s.domain.max);
+        if d == 2 {
+            domain_min.z = 0.0;
+            domain_max.z = 0.0;
+        }
+        let r_x = 2.0 * h_x as f32;
+        let mut gn = [1u32; 3];
+        let mut cell = [r_x; 3];
+        for a in 0..d {
+            let ext = domain_max[a] - domain_min[a];
+            let cells = (ext / r_x).floor().max(1.0);
+            gn[a] = cells as u32;
+            cell[a] = ext / cells;
+        }
+        let k_solid = Kernel::new(h_s as f32, dim);
+        Params {
+            dim,
+            k_liquid: Kernel::new(h_l as f32, dim),
+            k_solid,
+            k_cross: Kernel::new(h_x as f32, dim),
+            dx_solid: g.dx_solid as f32,
+            wc_dx: if g.dx_solid > 0.0 { k_solid.w_cubic(g.dx_solid as f32) } else { 1.0 },
+            rho0_l: rho0_l as f32,
+            rho0_s: rho0_s as f32,
+            eta: eta as f32,
+            k_l: k_l as f32,
+            c1: c1 as f32,
+            liquid_tension: n.liquid_tension,
+            k_s: k_s as f32,
+            k_sat: k_sat as f32,
+            n_sat: n_sat as f32,
+            c10: c10 as f32,
+            c01: c01 as f32,
+            kbar: kbar as f32,
+            c_l: c_l as f32,
+            c_s: c_s as f32,
+            av_alpha: n.artificial_viscosity.alpha as f32,
+            av_beta: n.artificial_viscosity.beta as f32,
+            av_gamma: n.artificial_viscosity.gamma as f32,
+            av_liquid: n.artificial_viscosity.liquid,
+            as_eps: n.artificial_stress.epsilon as f32,
+            as_exp: n.artificial_stress.exponent as i32,
+            xsph_s: n.xsph.solid as f32,
+            xsph_l: n.xsph.liquid as f32,
+            kappa_v: kappa_v as f32,
+            gravity: Vec3::new(
+                s.gravity[0] as f32,
+                s.gravity[1] as f32,
+                if d == 3 { s.gravity[2] as f32 } else { 0.0 },
+            ),
+            rho_ref_l: (g.fraction_liquid.max(1e-3) * rho0_l) as f32,
+            rho_ref_s: (g.fraction_solid.max(1e-3) * rho0_s) as f32,
+            cfl_factor: n.cfl.factor as f32,
+            cfl_viscous: n.cfl.viscous as f32,
+            cfl_sound: n.cfl.sound as f32,
+            cfl_force: n.cfl.force as f32,
+            cfl_friction: n.cfl.friction as f32,
+            dt_min: n.dt_min as f32,
+            dt_max: n.dt_max as f32,
+            fixed_dt: n.fixed_dt.map(|x| x as f32),
+            max_speed: max_speed as f32,
+            origin,
+            domain_min,
+            domain_max,
+            periodic: s.domain.periodic,
+            grid: GridDims { n: gn, cell, min: domain_min },
+            has_liquid,
+            has_solid,
+            solid_dynamic,
+        }
+    }
+
+    /// Converts absolute scenario coordinates to simulation coordinates.
+    pub fn to_sim(&self, p: [f64; 3]) -> Vec3 {
+        let z = if self.dim == Dim::Two { 0.0 } else { (p[2] - self.origin[2]) as f32 };
+        Vec3::new((p[0] - self.origin[0]) as f32, (p[1] - self.origin[1]) as f32, z)
+    }
+
+    /// Converts simulation coordinates back to absolute scenario coordinates.
+    pub fn to_world(&self, p: Vec3) -> [f64; 3] {
+        [p.x as f64 + self.origin[0], p.y as f64 + self.origin[1], p.z as f64 + self.origin[2]]
+    }
+
+    /// Largest signal speed of the phases present.
+    pub fn c_max(&self) -> f32 {
+        let cl = if self.has_liquid { self.c_l } else { 0.0 };
+        let cs = if self.solid_dynamic { self.c_s } else { 0.0 };
+        cl.max(cs)
+    }
+
+    /// Smallest smoothing length of the phases present (h of (2.70)).
+    pub fn h_min(&self) -> f32 {
+        match (self.has_liquid, self.solid_dynamic) {
+            (true, true) => self.k_liquid.h.min(self.k_solid.h),
+            (true, false) => self.k_liquid.h,
+            _ => self.k_solid.h,
+        }
+    }
+
+    /// Periodic lengths per axis (0 where not periodic).
+    pub fn periodic_len(&self) -> Vec3 {
+        let e = self.domain_max - self.domain_min;
+        Vec3::new(
+            if self.periodic[0] { e.x } else { 0.0 },
+            if self.periodic[1] { e.y } else { 0.0 },
+            if self.periodic[2] { e.z } else { 0.0 },
+        )
+    }
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
