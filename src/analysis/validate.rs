@@ -172,7 +172,8 @@ fn channel_overrides(ny: usize, nx: usize, solid: bool) -> Vec<String> {
     let wall = h + 3.0 * dx;
     let mut ov = vec![
         format!("numerics.dx_liquid={dx}"),
-        format!("domain.max=[{lx}, 0.0125, 0.0]"),
+        format!("domain.min=[0.0, {}, 0.0]", -(wall + dx).max(0.0125)),
+        format!("domain.max=[{lx}, {}, 0.0]", (wall + dx).max(0.0125)),
         format!("particles.0.max=[{lx}, {h}, 0.0]"),
         format!("boundaries.0.shape.min=[0.0, {h}, 0.0]"),
         format!("boundaries.0.shape.max=[{lx}, {wall}, 0.0]"),
@@ -520,7 +521,7 @@ fn hydrostatic(ctx: &Ctx) -> Result<Vec<CaseResult>, ValidationError> {
     let steps = 10_000;
     for k in 0..steps {
         sim.step()?;
-        if k % 100 == 99 {
+        if k % 20 == 19 {
             let s = sim.read_state()?;
             inv.check(&sim, &s);
             let p = bottom.iter().map(|&i| s.liquid.p[i] as f64).sum::<f64>() / bottom.len().max(1) as f64;
@@ -529,7 +530,9 @@ fn hydrostatic(ctx: &Ctx) -> Result<Vec<CaseResult>, ValidationError> {
                 s.liquid
                     .pos
                     .iter()
-                    .filter(|x| (x.y as f64 + origin[1]) < 0.0 || (x.x as f64 + origin[0]).abs() > half_w)
+                    .filter(|x| {
+                        (x.y as f64 + origin[1]) < -0.5 * dx || (x.x as f64 + origin[0]).abs() > half_w + 0.5 * dx
+                    })
                     .count(),
             );
         }

@@ -152,6 +152,10 @@ pub struct Numerics {
     /// Signal speed of the solid [m/s]; default includes the elastic wave speed (SPEC D-27).
     #[serde(default)]
     pub sound_speed_solid: Option<f64>,
+    /// Multiply the liquid pressure-gradient terms by κ_S (the spiky kernel's lattice-moment correction,
+    /// the pressure twin of κ_V; README: deviations from SPEC).
+    #[serde(default = "d_true")]
+    pub pressure_gradient_normalisation: bool,
     /// Let the liquid penalty pressure (2.53) go negative. Default false: pˡ = max(pˡ, 0), i.e. the liquid
     /// sustains no tension. With summation density (2.46) a free-surface particle misses part of its
     /// kernel support (nˡ ≈ 0.7 at a corner), which the linear penalty turns into tens of kPa of

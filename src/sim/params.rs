@@ -46,6 +46,8 @@ pub struct Params {
     pub xsph_s: f32,
     pub xsph_l: f32,
     pub kappa_v: f32,
+    /// Pressure-gradient normalisation κ_S of the liquid (1 when disabled).
+    pub kappa_s: f32,
     pub gravity: Vec3,
     /// Reference apparent densities n₀ρ₀ of each phase (friction time-step bound).
     pub rho_ref_l: f32,
@@ -133,6 +135,11 @@ impl Params {
         } else {
             1.0
         };
+        let kappa_s = if n.pressure_gradient_normalisation && has_liquid {
+            super::kernels::pressure_gradient_normalisation(g.dx_liquid, 2.0 * h_l, dim)
+        } else {
+            1.0
+        };
         let d = s.dimensions as usize;
         let mut origin = [0.0; 3];
         for a in 0..d {
@@ -186,6 +193,7 @@ impl Params {
             xsph_s: n.xsph.solid as f32,
             xsph_l: n.xsph.liquid as f32,
             kappa_v: kappa_v as f32,
+            kappa_s: kappa_s as f32,
             gravity: Vec3::new(
                 s.gravity[0] as f32,
                 s.gravity[1] as f32,

@@ -42,15 +42,18 @@ pub fn dt_reduce(p: &Params, l: &LiquidSet, s: &SolidSet) -> (f32, DtLimit) {
             .zip(l.rho.par_iter())
             .map(|(&ns, &r)| if ns > 1e-6 { p.kbar * (1.0 - ns).max(0.0) * (1.0 / r + 1.0 / p.rho_ref_s) } else { 0.0 })
             .reduce(|| 0.0, f32::max);
+        // Kinematic solid particles integrate nothing: only dynamic ones bound the friction step.
         let fs = s
             .n_l
             .par_iter()
-            .zip(s.n_s.par_iter().zip(s.rho.par_iter()))
-            .map(
-                |(&nl, (&ns, &r))| {
-                    if nl > 1e-6 { p.kbar * (1.0 - ns).max(0.0) * (1.0 / r + 1.0 / p.rho_ref_l) } else { 0.0 }
-                },
-            )
+            .zip(s.n_s.par_iter().zip(s.rho.par_iter().zip(s.flags.par_iter())))
+            .map(|(&nl, (&ns, (&r, &f)))| {
+                if nl > 1e-6 && f & SolidFlags::KINEMATIC == 0 {
+                    p.kbar * (1.0 - ns).max(0.0) * (1.0 / r + 1.0 / p.rho_ref_l)
+                } else {
+                    0.0
+                }
+            })
             .reduce(|| 0.0, f32::max);
         let f = fl.max(fs);
         if f > 0.0 {

@@ -93,7 +93,9 @@ pub fn no_slip_factor(g: &ObjectGeom, xi: Vec3, xb: Vec3) -> f32 {
 }
 
 /// Acceleration a liquid particle (ρ, p, nˡ, v) receives from one boundary-like neighbour
-/// (wall particle or membrane particle) of liquid-equivalent mass m_b (SPEC §4.1, §3.6).
+/// (wall particle or membrane particle) of liquid-equivalent mass m_b (SPEC §4.1, §3.6). In mirror mode
+/// the wall shows ρ_b = ρ_i and the hydrostatically extrapolated p_b = max(p_i + ρ_i g·(x_b − x_i), 0)
+/// (Adami, Hu & Adams 2012; README: deviations from SPEC), so a wall carries the weight above it.
 #[inline]
 pub fn liquid_from_boundary(
     p: &Params,
@@ -107,15 +109,17 @@ pub fn liquid_from_boundary(
     r: f32,
     mode: ObjectPressure,
     no_slip: f32,
+    g: Vec3,
 ) -> Vec3 {
     let k = &p.k_liquid;
     let grad = xib * k.grad_spiky_factor(r);
     let bracket = if mode.density < 0.0 {
-        2.0 * pr.max(0.0) / (rho * rho)
+        let pb = (pr + rho * g.dot(-xib)).max(0.0);
+        (pr.max(0.0) + pb) / (rho * rho)
     } else {
         pr / (rho * rho) + mode.pressure / (mode.density * mode.density)
     };
-    let mut a = grad * (-n_l * m_b * bracket);
+    let mut a = grad * (-n_l * m_b * bracket * p.kappa_s);
     a += (vb - vi) * (no_slip * p.kappa_v * p.eta / rho * (m_b / rho) * k.lap_viscosity(r));
     a
 }
@@ -140,7 +144,7 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
                 }
                 let grad = xij * kl.grad_spiky_factor(r);
                 let pj = l.p[j] / (l.rho[j] * l.rho[j]);
-                a += grad * (-n_l * l.m[j] * (pi + pj));
+                a += grad * (-n_l * l.m[j] * (pi + pj) * p.kappa_s);
                 a += (l.v[j] - vi) * (p.kappa_v * p.eta / rho * (l.m[j] / l.rho[j]) * kl.lap_viscosity(r));
                 if p.av_liquid {
                     let pij = artificial_viscosity(
@@ -160,11 +164,12 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
             nb.boundary.for_each(xi, kl.r, |j, xij, r| {
                 let obj = b.object[j] as usize;
                 let slip = no_slip_factor(&c.geoms[obj], xi, b.x[j]);
-                a += liquid_from_boundary(p, rho, pr, n_l, vi, b.m_l[j], b.v[j], xij, r, c.pressure_modes[obj], slip);
+                a +=
+                    liquid_from_boundary(p, rho, pr, n_l, vi, b.m_l[j], b.v[j], xij, r, c.pressure_modes[obj], slip, g);
             });
             nb.solid.for_each(xi, kl.r, |j, xij, r| {
                 if s.flags[j] & SolidFlags::MEMBRANE != 0 {
-                    a += liquid_from_boundary(p, rho, pr, n_l, vi, s.m_bl[j], s.v[j], xij, r, MIRROR, 1.0);
+                    a += liquid_from_boundary(p, rho, pr, n_l, vi, s.m_bl[j], s.v[j], xij, r, MIRROR, 1.0, g);
                 }
             });
             if p.kbar > 0.0 {
@@ -188,6 +193,7 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
     let support = 2.0 * ks.h;
     let cap = s.bond_capacity;
     let period = p.periodic_len();
+    let g_l = if c.gravity_liquid { c.gravity } else { Vec3::ZERO };
     (0..s.x.len())
         .into_par_iter()
         .with_min_len(super::MIN_PAR_LEN)
@@ -261,8 +267,9 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                 let mut f = Vec3::ZERO;
                 nb.liquid.for_each(xi, kl.r, |j, xji, r| {
                     let xjb = -xji;
-                    let on_j =
-                        liquid_from_boundary(p, l.rho[j], l.p[j], l.n_l[j], l.v[j], s.m_bl[i], vi, xjb, r, MIRROR, 1.0);
+                    let on_j = liquid_from_boundary(
+                        p, l.rho[j], l.p[j], l.n_l[j], l.v[j], s.m_bl[i], vi, xjb, r, MIRROR, 1.0, g_l,
+                    );
                     f -= on_j * l.m[j];
                 });
                 a += f / s.m[i];

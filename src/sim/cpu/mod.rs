@@ -185,6 +185,7 @@ impl CpuSolver {
             if f & SolidFlags::KINEMATIC != 0 {
                 solid.v[i] = Vec3::ZERO;
             }
+            solid.n_s[i] = solid.rho[i] / params.rho0_s;
         }
         let nb = g.boundary_pos.len();
         let bx: Vec<Vec3> = g.boundary_pos.iter().map(to).collect();
@@ -302,19 +303,23 @@ impl CpuSolver {
             boundary: self.neighbours(Set::Boundary),
         };
         let (rho_l, n_s_l, p_l) = density::density_liquid(p, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb);
-        let (drho_s, n_l_s, n_s_s, p_s) =
-            density::density_solid(p, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb);
+        // A skeleton held entirely still (Brinkman) needs no continuity, stress, F, forces or fracture:
+        // nothing reads them (its ρ is not integrated, and nˢ = ρ/ρ₀ stays as initialised).
+        let solid_pass =
+            p.solid_dynamic.then(|| density::density_solid(p, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb));
         let l = &mut self.st.liquid;
         l.n_l = rho_l.iter().map(|r| r / p.rho0_l).collect();
         l.rho = rho_l;
         l.n_s = n_s_l;
         l.p = p_l;
-        let s = &mut self.st.solid;
-        s.drho = drho_s;
-        s.n_l = n_l_s;
-        s.n_s = n_s_s;
-        s.p = p_s;
-        solid::solid_stress(&self.params, &mut self.st.solid);
+        if let Some((drho_s, n_l_s, n_s_s, p_s)) = solid_pass {
+            let s = &mut self.st.solid;
+            s.drho = drho_s;
+            s.n_l = n_l_s;
+            s.n_s = n_s_s;
+            s.p = p_s;
+            solid::solid_stress(&self.params, &mut self.st.solid);
+        }
         let p = &self.params;
         let nb = Nbrs {
             liquid: self.neighbours(Set::Liquid),
@@ -329,23 +334,23 @@ impl CpuSolver {
             gravity_liquid: !(self.st.damping > 0.0 && self.st.damping_solid_gravity_only),
         };
         let a_l = forces::forces_liquid(&ctx, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb);
-        let a_s = forces::forces_solid(&ctx, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb);
-        let (vx_l, vx_s) = if with_xsph {
-            (
-                Some(forces::forces_xsph_liquid(p, &self.st.liquid, &nb)),
-                Some(forces::forces_xsph_solid(p, &self.st.solid, &nb)),
-            )
+        let a_s = if p.solid_dynamic {
+            forces::forces_solid(&ctx, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb)
         } else {
-            (None, None)
+            vec![Vec3::ZERO; self.st.solid.x.len()]
         };
+        if with_xsph {
+            let vx_l = forces::forces_xsph_liquid(p, &self.st.liquid, &nb);
+            let vx_s = if p.solid_dynamic {
+                forces::forces_xsph_solid(p, &self.st.solid, &nb)
+            } else {
+                self.st.solid.v.clone()
+            };
+            self.st.liquid.vx = vx_l;
+            self.st.solid.vx = vx_s;
+        }
         self.st.liquid.a = a_l;
         self.st.solid.a = a_s;
-        if let Some(v) = vx_l {
-            self.st.liquid.vx = v;
-        }
-        if let Some(v) = vx_s {
-            self.st.solid.vx = v;
-        }
     }
 
     /// One predictor–corrector step (SPEC §5.1–5.2).
@@ -379,7 +384,9 @@ impl CpuSolver {
         // 5: predictor and F update (∇W at xⁿ), then move.
         let t_next = self.st.t + dt as f64;
         integrate::integrate_predict(&self.params, &mut self.st, dt, t_next);
-        solid::solid_def_grad(&self.params, &mut self.st.solid);
+        if self.params.solid_dynamic {
+            solid::solid_def_grad(&self.params, &mut self.st.solid);
+        }
         integrate::integrate_advance(&self.params, &mut self.st, dt);
         // 6: boundaries → tⁿ⁺¹, grid on xⁿ⁺¹.
         self.move_boundaries(t_next);
@@ -388,7 +395,8 @@ impl CpuSolver {
         self.evaluate(false);
         integrate::integrate_correct(&self.params, &mut self.st, dt);
         // 9: fracture on xⁿ⁺¹.
-        let broken = fracture::fracture_apply(&self.params, &mut self.st.solid);
+        let broken =
+            if self.params.solid_dynamic { fracture::fracture_apply(&self.params, &mut self.st.solid) } else { 0 };
         self.st.t = t_next;
         self.st.steps += 1;
         if let Some(e) = self.check_divergence() {

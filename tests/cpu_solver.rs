@@ -1,0 +1,133 @@
+//! Behaviour of the reference solver through the public API: determinism, divergence handling that keeps
+//! the last good state, command handling, and a short headless run of every shipped scenario with mass
+//! conserved (issue: core).
+
+use perfuse::output::{RunLength, RunOptions, run_headless};
+use perfuse::scenario::{Motion, Scenario};
+use perfuse::sim::{BackendKind, Command, SimError, Simulation};
+use std::path::{Path, PathBuf};
+
+/// A perfused block on a plate with a moving indenter plate: every term of the model is active.
+const BLOCK: &str = r#"
+Scenario(
+    name: "block",
+    dimensions: 3,
+    domain: Domain(min: (-0.02, -0.02, -0.01), max: (0.02, 0.02, 0.03)),
+    gravity: (0.0, 0.0, -9.81),
+    liquid: Some(Liquid(density: 1000.0, viscosity: 0.35, sound_speed: Some(10.0))),
+    solid: Some(Solid(density: 1000.0, c10: 1e5, c01: 400.0, k_s: 1e5, n_sat: 0.6, k_sat: 1e5, friction: 1e6)),
+    numerics: Numerics(dx_liquid: Some(0.0025), dx_solid: Some(0.0025)),
+    particles: [ PerfusedBlock(min: (-0.01, -0.01, 0.0), max: (0.01, 0.01, 0.02), solid_fraction: 0.6, liquid_fraction: 0.4) ],
+    boundaries: [
+        Boundary(name: "plate", shape: Box(min: (-0.015, -0.015, -0.0075), max: (0.015, 0.015, 0.0))),
+        Boundary(name: "indenter", shape: Box(min: (-0.005, -0.005, 0.026), max: (0.005, 0.005, 0.0285)),
+                 spacing: Some(0.00125), motion: Translate(velocity: (0.0, 0.0, -0.5))),
+    ],
+    duration: 0.01,
+)
+"#;
+
+fn block() -> Scenario {
+    Scenario::from_str_named(BLOCK, "block").expect("valid block scenario")
+}
+
+#[test]
+fn two_runs_are_bit_identical() {
+    let sc = block();
+    let run = || {
+        let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+        for _ in 0..60 {
+            sim.step().expect("step");
+        }
+        sim.read_state().expect("state").hash()
+    };
+    assert_eq!(run(), run());
+}
+
+#[test]
+fn masses_are_constant_and_state_finite() {
+    let mut sim = Simulation::new(&block(), BackendKind::Cpu).expect("sim");
+    let s0 = sim.read_state().expect("state");
+    for _ in 0..60 {
+        sim.step().expect("step");
+    }
+    let s1 = sim.read_state().expect("state");
+    assert_eq!(s0.liquid.total_mass(), s1.liquid.total_mass());
+    assert_eq!(s0.solid.total_mass(), s1.solid.total_mass());
+    assert!(s1.liquid.pos.iter().chain(s1.solid.pos.iter()).all(|p| p.is_finite()));
+    assert!(s1.t > 0.0 && s1.steps == 60);
+}
+
+#[test]
+fn divergence_is_reported_and_last_good_state_kept() {
+    // A runaway-speed limit far below what gravity produces: the run must stop cleanly.
+    let sc = Scenario::from_str_with_overrides(BLOCK, "block", &["numerics.max_speed=0.005".into()]).expect("valid");
+    let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    let mut last_good = Some(sim.read_state().expect("state"));
+    let err = loop {
+        match sim.step() {
+            Ok(_) => last_good = Some(sim.read_state().expect("state")),
+            Err(e) => break e,
+        }
+        assert!(sim.stats().steps < 10_000, "never diverged");
+    };
+    match &err {
+        SimError::Diverged { particle, reason, .. } => {
+            assert!(particle.contains('#') && reason.contains("runaway"), "{err}");
+        }
+        other => panic!("wrong error: {other}"),
+    }
+    let kept = sim.read_state().expect("state");
+    let last_good = last_good.expect("initial state");
+    assert_eq!(kept.hash(), last_good.hash(), "the state after divergence must be the last good one");
+    assert!(err.to_string().contains("last good state is kept"));
+}
+
+#[test]
+fn commands_move_boundaries_and_reject_nonsense() {
+    let mut sim = Simulation::new(&block(), BackendKind::Cpu).expect("sim");
+    let before = sim.read_state().expect("state");
+    sim.apply(&Command::SetBoundaryMotion {
+        object: 1,
+        motion: Motion::Translate { velocity: [0.0, 0.0, 1.0], start: 0.0, stop: None },
+    })
+    .expect("valid command");
+    for _ in 0..5 {
+        sim.step().expect("step");
+    }
+    let after = sim.read_state().expect("state");
+    let zmax = |s: &perfuse::sim::State| s.boundary.pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+    assert!(zmax(&after) > zmax(&before), "indenter did not move up");
+    assert!(sim.apply(&Command::SetBoundaryMotion { object: 99, motion: Motion::Static }).is_err());
+    assert!(sim.apply(&Command::SetGravity([f64::NAN, 0.0, 0.0])).is_err());
+}
+
+/// `perfuse run` on every shipped scenario (a few hundred steps here; full runs are in the README):
+/// no divergence, summary.json written, masses conserved.
+#[test]
+fn every_shipped_scenario_runs_headless() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios");
+    let out_root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/test-artifacts/run");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).expect("dir") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_none_or(|e| e != "ron") {
+            continue;
+        }
+        let sc = Scenario::load_with_overrides(&path, &["relaxation=null".into()]).unwrap_or_else(|e| panic!("{e}"));
+        let out = out_root.join(&sc.name);
+        let opts = RunOptions {
+            backend: BackendKind::Cpu,
+            length: Some(RunLength::Steps(100)),
+            out: Some(out.clone()),
+            progress: false,
+        };
+        let summary = run_headless(&sc, &opts).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert!(!summary.diverged, "{}: {:?}", sc.name, summary.divergence);
+        assert!(summary.mass.conserved, "{}: {:?}", sc.name, summary.mass);
+        assert_eq!(summary.steps, 100);
+        assert!(out.join("summary.json").exists() && summary.frames_written >= 1);
+        n += 1;
+    }
+    assert!(n >= 5, "{n} scenarios");
+}
