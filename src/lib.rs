@@ -5,12 +5,14 @@
 //! * [`sim`] — how: one [`sim::Simulation`] API; `sim::cpu` is the rayon reference solver.
 //! * [`analysis`] — analytic references, validation cases, reports and plots.
 //! * [`output`] — CSV frames and `summary.json` of headless runs.
+//! * [`bench`] — particle-steps per second of the back-ends (`perfuse bench`).
 //!
 //! **Determinism.** Neighbour sums run in a canonical order (grid cell offsets, then ascending particle
 //! index), each particle's sum is sequential, and reductions are min/max: two runs of a scenario on one
 //! back-end produce bit-identical states (`State::hash`).
 
 pub mod analysis;
+pub mod bench;
 pub mod output;
 pub mod scenario;
 pub mod sim;

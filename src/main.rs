@@ -48,6 +48,27 @@ enum Cmd {
         #[arg(long = "set", value_name = "FIELD=VALUE")]
         set: Vec<String>,
     },
+    /// Particle-steps per second of each back-end on a perfused block at several sizes (or on a scenario).
+    Bench {
+        /// Particle counts (liquid + solid) of the perfused block.
+        #[arg(long, value_delimiter = ',', default_value = "16000,64000,256000,1000000")]
+        sizes: Vec<usize>,
+        /// Measure this scenario instead (adds its real-time factor and dt-limiting criterion).
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Override scenario fields (with --scenario), as for `run`.
+        #[arg(long = "set", value_name = "FIELD=VALUE")]
+        set: Vec<String>,
+        /// Back-ends to measure.
+        #[arg(long, value_enum, value_delimiter = ',', default_value = "cpu")]
+        backends: Vec<Backend>,
+        /// Minimum wall time per configuration [s].
+        #[arg(long, default_value_t = 5.0)]
+        seconds: f64,
+        /// Write the rows as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Run the validation cases against their analytic references: report.json and PNG plots.
     Validate {
         /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever).
@@ -102,6 +123,44 @@ fn real_main() -> Result<()> {
             println!("wrote {} frames and summary.json to {}", summary.frames_written, out.display());
             if let Some(d) = &summary.divergence {
                 bail!("{d}");
+            }
+            Ok(())
+        }
+        Cmd::Bench { sizes, scenario, set, backends, seconds, json } => {
+            if !(seconds.is_finite() && seconds > 0.0) {
+                bail!("--seconds must be positive, got {seconds}");
+            }
+            let scenarios: Vec<perfuse::scenario::Scenario> = match &scenario {
+                Some(path) => vec![Scenario::load_with_overrides(path, &set)?],
+                None => {
+                    if sizes.is_empty() || sizes.iter().any(|&n| n < 16 || n > 20_000_000) {
+                        bail!("--sizes must list particle counts between 16 and 20000000");
+                    }
+                    sizes.iter().map(|&n| perfuse::bench::perfused_block(n)).collect::<Result<_, _>>()?
+                }
+            };
+            let mut rows = Vec::new();
+            for sc in &scenarios {
+                for &b in &backends {
+                    eprintln!("measuring {} on {:?}…", sc.name, b);
+                    let row = perfuse::bench::measure(sc, b.into(), seconds, 3, u64::MAX)
+                        .with_context(|| format!("benchmarking {}", sc.name))?;
+                    eprint!("{}", perfuse::bench::table(std::slice::from_ref(&row)));
+                    rows.push(row);
+                }
+            }
+            println!("{}", perfuse::bench::table(&rows));
+            for &b in &backends {
+                let name = format!("{:?}", BackendKind::from(b)).to_lowercase();
+                let of: Vec<&perfuse::bench::BenchRow> = rows.iter().filter(|r| r.backend == name).collect();
+                if let Some(slope) = perfuse::bench::cost_slope(&of) {
+                    println!("{name}: fitted slope of time per step vs N = {slope:.3}");
+                }
+            }
+            if let Some(path) = json {
+                std::fs::write(&path, serde_json::to_string_pretty(&rows)?)
+                    .with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
             }
             Ok(())
         }

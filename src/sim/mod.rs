@@ -6,6 +6,7 @@
 //! returns [`SimError::Diverged`] and keeps the last good state.
 
 pub mod cpu;
+pub mod gpu;
 pub mod kernels;
 pub mod params;
 pub mod state;
@@ -191,6 +192,27 @@ impl Simulation {
     pub fn apply(&mut self, cmd: &Command) -> Result<(), SimError> {
         match &mut self.engine {
             Engine::Cpu(c) => c.apply(cmd),
+        }
+    }
+
+    /// Accumulated wall time per pass family [s], sorted by name.
+    pub fn pass_times(&self) -> Vec<(String, f64)> {
+        match &self.engine {
+            Engine::Cpu(c) => c.timers.totals.iter().map(|(k, v)| (k.to_string(), v.as_secs_f64())).collect(),
+        }
+    }
+
+    /// Device or host memory used by particle storage [bytes].
+    pub fn memory_bytes(&self) -> usize {
+        match &self.engine {
+            Engine::Cpu(c) => c.memory_bytes(),
+        }
+    }
+
+    /// Name of the back-end and, for the GPU, its adapter.
+    pub fn backend_name(&self) -> String {
+        match &self.engine {
+            Engine::Cpu(_) => format!("cpu (rayon, {} threads)", rayon::current_num_threads()),
         }
     }
 

@@ -30,13 +30,14 @@ pub fn density_liquid(
             let mut rho = 0.0f32;
             nb.liquid.for_each(xi, kl.r, |j, _, r| rho += l.m[j] * kl.w_poly6(r));
             nb.boundary.for_each(xi, kl.r, |j, _, r| rho += b.m_l[j] * kl.w_poly6(r));
-            nb.solid.for_each(xi, kl.r, |j, _, r| {
-                if s.flags[j] & SolidFlags::MEMBRANE != 0 {
+            // One pass over the solid (R_× ≥ R_l): membrane particles as liquid boundary, and nˢ.
+            let mut sum_s = 0.0f32;
+            nb.solid.for_each(xi, kx.r, |j, _, r| {
+                if r < kl.r && s.flags[j] & SolidFlags::MEMBRANE != 0 {
                     rho += s.m_bl[j] * kl.w_poly6(r);
                 }
+                sum_s += s.m[j] * kx.w_poly6(r);
             });
-            let mut sum_s = 0.0f32;
-            nb.solid.for_each(xi, kx.r, |j, _, r| sum_s += s.m[j] * kx.w_poly6(r));
             let n_s = sum_s / p.rho0_s;
             let n_l = rho / p.rho0_l;
             let raw = p.k_l * (n_s + n_l - 1.0 + p.c1 * n_s * n_l);

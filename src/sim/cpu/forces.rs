@@ -167,17 +167,18 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
                 a +=
                     liquid_from_boundary(p, rho, pr, n_l, vi, b.m_l[j], b.v[j], xij, r, c.pressure_modes[obj], slip, g);
             });
-            nb.solid.for_each(xi, kl.r, |j, xij, r| {
-                if s.flags[j] & SolidFlags::MEMBRANE != 0 {
+            // One pass over the solid (R_× ≥ R_l): membrane particles as boundary, and friction (2.17).
+            let mut f = Vec3::ZERO;
+            nb.solid.for_each(xi, kx.r, |j, xij, r| {
+                if r < kl.r && s.flags[j] & SolidFlags::MEMBRANE != 0 {
                     a += liquid_from_boundary(p, rho, pr, n_l, vi, s.m_bl[j], s.v[j], xij, r, MIRROR, 1.0, g);
+                }
+                if p.kbar > 0.0 {
+                    let k = friction_coefficient(p.kbar, n_s, s.n_s[j]);
+                    f += (vi - s.v[j]) * (s.m[j] / s.rho[j] * k * kx.w_poly6(r));
                 }
             });
             if p.kbar > 0.0 {
-                let mut f = Vec3::ZERO;
-                nb.solid.for_each(xi, kx.r, |j, _, r| {
-                    let k = friction_coefficient(p.kbar, n_s, s.n_s[j]);
-                    f += (vi - s.v[j]) * (s.m[j] / s.rho[j] * k * kx.w_poly6(r));
-                });
                 a -= f / rho;
             }
             a + g

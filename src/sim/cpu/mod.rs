@@ -109,6 +109,21 @@ pub struct Grids {
     pub boundary: CellList,
 }
 
+/// Accumulated wall time per pass family (the CPU counterpart of GPU timestamp queries).
+#[derive(Clone, Debug, Default)]
+pub struct PassTimers {
+    pub totals: std::collections::BTreeMap<&'static str, std::time::Duration>,
+}
+
+impl PassTimers {
+    /// Adds the time since `t0` to `name` and returns a new start instant.
+    fn lap(&mut self, name: &'static str, t0: std::time::Instant) -> std::time::Instant {
+        let now = std::time::Instant::now();
+        *self.totals.entry(name).or_default() += now - t0;
+        now
+    }
+}
+
 /// Everything that evolves (restored on divergence).
 #[derive(Clone, Debug, Default)]
 pub struct CpuState {
@@ -135,6 +150,7 @@ pub struct CpuSolver {
     /// The step runs inside this pool so that its many parallel passes do not each pay a cross-thread
     /// injection from outside the pool.
     pool: std::sync::Arc<rayon::ThreadPool>,
+    pub timers: PassTimers,
 }
 
 impl CpuSolver {
@@ -226,6 +242,7 @@ impl CpuSolver {
                 .map_err(|e| SimError::Resources(format!("cannot start the CPU thread pool: {e}")))?,
         );
         let mut solver = CpuSolver {
+            timers: PassTimers::default(),
             pool,
             geoms: shapes.clone(),
             shapes,
@@ -296,6 +313,7 @@ impl CpuSolver {
 
     /// One force evaluation (SPEC §5.2 step 3/7): densities, fractions, pressures, stresses, forces.
     fn evaluate(&mut self, with_xsph: bool) {
+        let t0 = std::time::Instant::now();
         let p = &self.params;
         let nb = Nbrs {
             liquid: self.neighbours(Set::Liquid),
@@ -312,6 +330,7 @@ impl CpuSolver {
         l.rho = rho_l;
         l.n_s = n_s_l;
         l.p = p_l;
+        let t0 = self.timers.lap("density", t0);
         if let Some((drho_s, n_l_s, n_s_s, p_s)) = solid_pass {
             let s = &mut self.st.solid;
             s.drho = drho_s;
@@ -320,6 +339,7 @@ impl CpuSolver {
             s.p = p_s;
             solid::solid_stress(&self.params, &mut self.st.solid);
         }
+        let t0 = self.timers.lap("solid", t0);
         let p = &self.params;
         let nb = Nbrs {
             liquid: self.neighbours(Set::Liquid),
@@ -351,11 +371,14 @@ impl CpuSolver {
         }
         self.st.liquid.a = a_l;
         self.st.solid.a = a_s;
+        self.timers.lap("forces", t0);
     }
 
     /// One predictor–corrector step (SPEC §5.1–5.2).
     pub fn step(&mut self) -> Result<StepInfo, SimError> {
+        let t0 = std::time::Instant::now();
         self.last_good.clone_from(&self.st);
+        self.timers.lap("snapshot", t0);
         let pool = self.pool.clone();
         let result = pool.install(|| self.step_inner());
         match result {
@@ -372,7 +395,9 @@ impl CpuSolver {
         // 2–3: grid on xⁿ is current (built at the end of the previous step); evaluation 0.
         self.evaluate(true);
         // 4: Δt from (2.70).
+        let t0 = std::time::Instant::now();
         let (dt, limit) = dt::dt_reduce(&self.params, &self.st.liquid, &self.st.solid);
+        let t0 = self.timers.lap("dt", t0);
         if !(dt.is_finite() && dt >= self.params.dt_min) {
             return Err(SimError::Diverged {
                 step: self.st.steps,
@@ -384,19 +409,26 @@ impl CpuSolver {
         // 5: predictor and F update (∇W at xⁿ), then move.
         let t_next = self.st.t + dt as f64;
         integrate::integrate_predict(&self.params, &mut self.st, dt, t_next);
+        let t0 = self.timers.lap("integrate", t0);
         if self.params.solid_dynamic {
             solid::solid_def_grad(&self.params, &mut self.st.solid);
         }
+        let t0 = self.timers.lap("solid", t0);
         integrate::integrate_advance(&self.params, &mut self.st, dt);
+        let t0 = self.timers.lap("integrate", t0);
         // 6: boundaries → tⁿ⁺¹, grid on xⁿ⁺¹.
         self.move_boundaries(t_next);
         self.build_grids();
+        self.timers.lap("grid", t0);
         // 7–8: evaluation 1 and corrector.
         self.evaluate(false);
+        let t0 = std::time::Instant::now();
         integrate::integrate_correct(&self.params, &mut self.st, dt);
+        let t0 = self.timers.lap("integrate", t0);
         // 9: fracture on xⁿ⁺¹.
         let broken =
             if self.params.solid_dynamic { fracture::fracture_apply(&self.params, &mut self.st.solid) } else { 0 };
+        self.timers.lap("fracture", t0);
         self.st.t = t_next;
         self.st.steps += 1;
         if let Some(e) = self.check_divergence() {
@@ -484,6 +516,23 @@ impl CpuSolver {
             }
         }
         Ok(())
+    }
+
+    /// Bytes of particle storage (all per-particle arrays, bonds and the divergence snapshot).
+    pub fn memory_bytes(&self) -> usize {
+        fn set_bytes(st: &CpuState) -> usize {
+            let l = &st.liquid;
+            let s = &st.solid;
+            let v3 = std::mem::size_of::<Vec3>();
+            let m3 = std::mem::size_of::<Mat3>();
+            l.x.len() * (4 + 5 * v3 + 5 * 4)
+                + s.x.len() * (4 + 8 * v3 + 10 * 4 + 3 * m3)
+                + s.bonds.len() * 4
+                + st.boundary.x.len() * (3 * v3 + 12)
+        }
+        2 * set_bytes(&self.st)
+            + (self.grids.liquid.order.len() + self.grids.solid.order.len() + self.grids.boundary.order.len()) * 4
+            + 3 * self.grids.liquid.cell_start.len() * 4
     }
 
     pub fn read_state(&self) -> State {

@@ -1,0 +1,163 @@
+//! `perfuse bench`: particle-steps per second of the whole step (grid included) for each back-end on a
+//! perfused block at a list of sizes, time per pass, memory per particle and the fitted slope of cost
+//! vs N; or the same for any scenario, with its real-time factor and dt-limiting criterion — the figure
+//! that decides whether a surgeon can work interactively.
+
+use crate::scenario::{Scenario, ScenarioError};
+use crate::sim::{BackendKind, SimError, Simulation};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// One measured configuration (one row of `--json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchRow {
+    pub backend: String,
+    pub adapter: String,
+    pub scenario: String,
+    /// Liquid + solid particles (boundary particles excluded).
+    pub particles: usize,
+    pub boundary_particles: usize,
+    pub steps: u64,
+    pub wall_s: f64,
+    pub ps_per_s: f64,
+    pub ms_per_step: f64,
+    /// Milliseconds per step spent in each pass family.
+    pub pass_ms_per_step: BTreeMap<String, f64>,
+    pub bytes_per_particle: f64,
+    pub dt_mean_s: f64,
+    /// Simulated seconds per wall second.
+    pub real_time_factor: f64,
+    /// The criterion of (2.70) that limited Δt most often.
+    pub dt_limited_by: String,
+}
+
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BenchError {
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    #[error(transparent)]
+    Sim(#[from] SimError),
+}
+
+/// The §7.5 tissue specimen (perfused cube, 5 cm, on a plate, gravity) with about `n` particles
+/// (half solid, half liquid, on interpenetrating lattices of one spacing).
+pub fn perfused_block(n: usize) -> Result<Scenario, ScenarioError> {
+    let per_phase = (n as f64 / 2.0).max(8.0);
+    let k = per_phase.cbrt().round().max(2.0);
+    let side = 0.05;
+    let dx = side / k;
+    let h = side / 2.0;
+    let text = format!(
+        r#"Scenario(
+    name: "bench_block_{n}",
+    description: "perfused tissue block on a plate (SPEC 7.5 materials) for benchmarking",
+    dimensions: 3,
+    domain: Domain(min: (-0.06, -0.06, -0.02), max: (0.06, 0.06, 0.08)),
+    gravity: (0.0, 0.0, -9.81),
+    liquid: Some(Liquid(density: 1000.0, viscosity: 0.35, stiffness: Some(1.0e5))),
+    solid: Some(Solid(density: 1000.0, c10: 1.0e5, c01: 400.0, k_s: 1.0e5, n_sat: 0.6, k_sat: 1.0e5, friction: 1.0e6)),
+    numerics: Numerics(dx_liquid: Some({dx}), dx_solid: Some({dx}), h_over_dx: 1.3),
+    particles: [ PerfusedBlock(min: (-{h}, -{h}, 0.0), max: ({h}, {h}, {side}), solid_fraction: 0.6, liquid_fraction: 0.4) ],
+    boundaries: [ Boundary(name: "plate", shape: Box(min: (-0.055, -0.055, -{plate}), max: (0.055, 0.055, 0.0))) ],
+    duration: 1.0,
+)"#,
+        plate = 3.0 * dx
+    );
+    Scenario::from_str_named(&text, "(bench block)")
+}
+
+/// Steps `sc` on `backend` for at least `min_wall_s` seconds (after one warm-up step) and at least
+/// `min_steps` steps, at most `max_steps`.
+pub fn measure(
+    sc: &Scenario,
+    backend: BackendKind,
+    min_wall_s: f64,
+    min_steps: u64,
+    max_steps: u64,
+) -> Result<BenchRow, BenchError> {
+    let mut sim = Simulation::new(sc, backend)?;
+    sim.step()?; // warm-up: first-use allocations, shader compilation
+    let before: BTreeMap<String, f64> = sim.pass_times().into_iter().collect();
+    let t_sim0 = sim.time();
+    let steps0 = sim.stats().steps;
+    let start = Instant::now();
+    let mut n = 0u64;
+    while n < max_steps && (n < min_steps || start.elapsed().as_secs_f64() < min_wall_s) {
+        sim.step()?;
+        n += 1;
+    }
+    let wall = start.elapsed().as_secs_f64();
+    let state = sim.read_state()?;
+    let particles = state.liquid.len() + state.solid.len();
+    let mut pass = BTreeMap::new();
+    for (k, v) in sim.pass_times() {
+        let d = v - before.get(&k).copied().unwrap_or(0.0);
+        pass.insert(k, 1e3 * d / n.max(1) as f64);
+    }
+    let stats = sim.stats();
+    let limit = stats.dt_limited_by.iter().max_by_key(|(_, c)| **c).map(|(k, _)| k.clone()).unwrap_or_default();
+    let sim_time = sim.time() - t_sim0;
+    debug_assert_eq!(stats.steps - steps0, n);
+    let backend_name = sim.backend_name();
+    let (backend_short, adapter) = match backend_name.split_once(' ') {
+        Some((a, b)) => (a.to_string(), b.trim_matches(|c| c == '(' || c == ')').to_string()),
+        None => (backend_name.clone(), String::new()),
+    };
+    Ok(BenchRow {
+        backend: backend_short,
+        adapter,
+        scenario: sc.name.clone(),
+        particles,
+        boundary_particles: state.boundary.pos.len(),
+        steps: n,
+        wall_s: wall,
+        ps_per_s: particles as f64 * n as f64 / wall,
+        ms_per_step: 1e3 * wall / n.max(1) as f64,
+        pass_ms_per_step: pass,
+        bytes_per_particle: sim.memory_bytes() as f64 / particles.max(1) as f64,
+        dt_mean_s: sim_time / n.max(1) as f64,
+        real_time_factor: sim_time / wall,
+        dt_limited_by: limit,
+    })
+}
+
+/// Least-squares slope of log(time per step) against log(N) over rows of one back-end.
+pub fn cost_slope(rows: &[&BenchRow]) -> Option<f64> {
+    if rows.len() < 2 {
+        return None;
+    }
+    let pts: Vec<(f64, f64)> = rows.iter().map(|r| ((r.particles as f64).ln(), r.ms_per_step.ln())).collect();
+    let n = pts.len() as f64;
+    let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    (sxx > 0.0).then(|| sxy / sxx)
+}
+
+/// Formats rows as a plain-text table.
+pub fn table(rows: &[BenchRow]) -> String {
+    let mut out = format!(
+        "{:<8} {:<28} {:>9} {:>6} {:>12} {:>10} {:>8} {:>10} {:>9}  passes (ms/step)\n",
+        "backend", "adapter", "particles", "steps", "PS/s", "ms/step", "B/part", "RTF", "dt limit"
+    );
+    for r in rows {
+        let passes: Vec<String> = r.pass_ms_per_step.iter().map(|(k, v)| format!("{k} {v:.2}")).collect();
+        out.push_str(&format!(
+            "{:<8} {:<28} {:>9} {:>6} {:>12.3e} {:>10.2} {:>8.0} {:>10.2e} {:>9}  {}\n",
+            r.backend,
+            r.adapter.chars().take(28).collect::<String>(),
+            r.particles,
+            r.steps,
+            r.ps_per_s,
+            r.ms_per_step,
+            r.bytes_per_particle,
+            r.real_time_factor,
+            r.dt_limited_by,
+            passes.join(", ")
+        ));
+    }
+    out
+}
