@@ -6,7 +6,6 @@
 //! returns [`SimError::Diverged`] and keeps the last good state.
 
 pub mod cpu;
-pub mod gpu;
 pub mod kernels;
 pub mod params;
 pub mod state;
