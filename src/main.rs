@@ -17,12 +17,14 @@ struct Cli {
 #[derive(Clone, Copy, ValueEnum, Debug)]
 enum Backend {
     Cpu,
+    Gpu,
 }
 
 impl From<Backend> for BackendKind {
     fn from(b: Backend) -> BackendKind {
         match b {
             Backend::Cpu => BackendKind::Cpu,
+            Backend::Gpu => BackendKind::Gpu,
         }
     }
 }
@@ -133,7 +135,7 @@ fn real_main() -> Result<()> {
             let scenarios: Vec<perfuse::scenario::Scenario> = match &scenario {
                 Some(path) => vec![Scenario::load_with_overrides(path, &set)?],
                 None => {
-                    if sizes.is_empty() || sizes.iter().any(|&n| n < 16 || n > 20_000_000) {
+                    if sizes.is_empty() || sizes.iter().any(|n| !(16..=20_000_000).contains(n)) {
                         bail!("--sizes must list particle counts between 16 and 20000000");
                     }
                     sizes.iter().map(|&n| perfuse::bench::perfused_block(n)).collect::<Result<_, _>>()?

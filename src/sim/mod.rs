@@ -6,6 +6,7 @@
 //! returns [`SimError::Diverged`] and keeps the last good state.
 
 pub mod cpu;
+pub mod gpu;
 pub mod kernels;
 pub mod params;
 pub mod state;
@@ -85,6 +86,7 @@ pub enum SimError {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BackendKind {
     Cpu,
+    Gpu,
 }
 
 /// Running statistics of a simulation (for `summary.json`).
@@ -100,6 +102,7 @@ pub struct RunStats {
 
 enum Engine {
     Cpu(Box<cpu::CpuSolver>),
+    Gpu(Box<gpu::GpuSolver>),
 }
 
 /// A running simulation of one scenario on one back-end.
@@ -116,6 +119,7 @@ impl Simulation {
         let params = Params::new(scenario, &generated);
         let engine = match backend {
             BackendKind::Cpu => Engine::Cpu(Box::new(cpu::CpuSolver::new(params, &generated)?)),
+            BackendKind::Gpu => Engine::Gpu(Box::new(gpu::GpuSolver::new(params, &generated)?)),
         };
         Ok(Simulation {
             engine,
@@ -131,12 +135,14 @@ impl Simulation {
     pub fn params(&self) -> &Params {
         match &self.engine {
             Engine::Cpu(c) => &c.params,
+            Engine::Gpu(g) => &g.params,
         }
     }
 
     pub fn time(&self) -> f64 {
         match &self.engine {
             Engine::Cpu(c) => c.st.t,
+            Engine::Gpu(g) => g.time(),
         }
     }
 
@@ -148,6 +154,7 @@ impl Simulation {
     pub fn step(&mut self) -> Result<StepInfo, SimError> {
         let info = match &mut self.engine {
             Engine::Cpu(c) => c.step()?,
+            Engine::Gpu(g) => g.step()?,
         };
         let s = &mut self.stats;
         s.steps += 1;
@@ -191,6 +198,7 @@ impl Simulation {
     pub fn apply(&mut self, cmd: &Command) -> Result<(), SimError> {
         match &mut self.engine {
             Engine::Cpu(c) => c.apply(cmd),
+            Engine::Gpu(g) => g.apply(cmd),
         }
     }
 
@@ -198,6 +206,8 @@ impl Simulation {
     pub fn pass_times(&self) -> Vec<(String, f64)> {
         match &self.engine {
             Engine::Cpu(c) => c.timers.totals.iter().map(|(k, v)| (k.to_string(), v.as_secs_f64())).collect(),
+            // No per-pass GPU timers yet (timestamp queries): nothing to report.
+            Engine::Gpu(_) => Vec::new(),
         }
     }
 
@@ -205,6 +215,7 @@ impl Simulation {
     pub fn memory_bytes(&self) -> usize {
         match &self.engine {
             Engine::Cpu(c) => c.memory_bytes(),
+            Engine::Gpu(g) => g.memory_bytes(),
         }
     }
 
@@ -212,12 +223,14 @@ impl Simulation {
     pub fn backend_name(&self) -> String {
         match &self.engine {
             Engine::Cpu(_) => format!("cpu (rayon, {} threads)", rayon::current_num_threads()),
+            Engine::Gpu(g) => format!("gpu ({}, {:?})", g.ctx.info.name, g.ctx.info.backend),
         }
     }
 
     pub fn read_state(&mut self) -> Result<State, SimError> {
         match &self.engine {
             Engine::Cpu(c) => Ok(c.read_state()),
+            Engine::Gpu(g) => g.read_state(),
         }
     }
 }

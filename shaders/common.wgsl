@@ -1,0 +1,440 @@
+// common.wgsl — shared declarations of every Perfuse compute pass (STYLE §5.2: shared WGSL lives only here).
+//
+// * Host<->GPU structs, each mirrored by the `#[repr(C)]` Pod struct of the same name in
+//   `src/sim/gpu/gpu_types.rs` (must be kept in sync; a test compares sizes and offsets with naga).
+// * Every resource of the simulation, at the fixed (group 0, binding) numbers of the `Slot` table in
+//   `src/sim/gpu/bindings.rs`. Each entry point uses a subset; its pipeline layout lists exactly that
+//   subset (`passes.rs`).
+// * The kernels of thesis §2.2.1 (SPEC §2), line for line as `src/sim/kernels.rs`, plus the neighbour
+//   walk of `src/sim/cpu/grid.rs` (27 cells in the order dz, dy, dx ∈ -1..=1, then ascending index).
+//
+// Float arithmetic is written out (no dot()/length()/matrix products) so that each operation happens
+// in the same order as the glam code of the CPU twin.
+
+struct KernelConsts {
+    h: f32,
+    r: f32,
+    alpha_c: f32,
+    alpha_6: f32,
+    alpha_s: f32,
+    c_v: f32,
+    _pad0: f32,
+    _pad1: f32,
+}
+
+// Mirrors `SimParams` in gpu_types.rs (built from `sim::params::Params`).
+struct SimParams {
+    k_liquid: KernelConsts,
+    k_solid: KernelConsts,
+    k_cross: KernelConsts,
+    grid_min: vec4<f32>,
+    grid_cell: vec4<f32>,
+    // nx, ny, nz, cell count
+    grid_n: vec4<u32>,
+    // periodic length per axis (0 where not periodic)
+    period: vec4<f32>,
+    domain_min: vec4<f32>,
+    domain_max: vec4<f32>,
+    // xyz: g [m/s²]; w: 1 when the liquid feels gravity
+    gravity: vec4<f32>,
+    // n_liquid, n_solid, n_boundary, bond_capacity
+    counts: vec4<u32>,
+    // three_d, av_liquid, liquid_tension, n_objects
+    switches: vec4<u32>,
+    rho0_l: f32,
+    rho0_s: f32,
+    eta: f32,
+    k_l: f32,
+    c1: f32,
+    k_s: f32,
+    k_sat: f32,
+    n_sat: f32,
+    c10: f32,
+    c01: f32,
+    kbar: f32,
+    c_l: f32,
+    c_s: f32,
+    av_alpha: f32,
+    av_beta: f32,
+    av_gamma: f32,
+    as_eps: f32,
+    as_exp: i32,
+    xsph_s: f32,
+    xsph_l: f32,
+    kappa_v: f32,
+    wc_dx: f32,
+    rho_ref_l: f32,
+    rho_ref_s: f32,
+    cfl_factor: f32,
+    cfl_viscous: f32,
+    cfl_sound: f32,
+    cfl_force: f32,
+    cfl_friction: f32,
+    dt_min: f32,
+    dt_max: f32,
+    // < 0: none
+    fixed_dt: f32,
+    h_min: f32,
+    c_max: f32,
+    max_speed: f32,
+    // relaxation damping ζ [1/s]
+    damping: f32,
+    has_liquid: u32,
+    has_solid: u32,
+    // liquid pressure-gradient normalisation κ_S (1 when disabled)
+    kappa_s: f32,
+    _pad0: u32,
+}
+
+// Mirrors `StepState`: the GPU-resident Δt (SPEC §5.3) and the step status bitmask (STYLE §5.4).
+struct StepState {
+    dt: f32,
+    limit: u32,
+    status: atomic<u32>,
+    broken_ends: atomic<u32>,
+    // max |a| (bits of a non-negative f32: integer order = float order, exact in any order)
+    a_max_bits: atomic<u32>,
+    rho_min_bits: atomic<u32>,
+    fric_max_bits: atomic<u32>,
+    bad_liquid: atomic<u32>,
+    bad_solid: atomic<u32>,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+// Mirrors `ObjectGpu`: one boundary object's pose (SPEC §4.1) and pressure mode (D-23).
+struct ObjectGpu {
+    // surface: box [geom_a, geom_b] or sphere (centre geom_a, radius geom_b.x), current pose
+    geom_a: vec4<f32>,
+    geom_b: vec4<f32>,
+    // displacement and velocity of the object at the current time
+    disp: vec4<f32>,
+    vel: vec4<f32>,
+    // < 0: mirror
+    density: f32,
+    pressure: f32,
+    // 0 box, 1 sphere, 2 none
+    kind: u32,
+    _pad: u32,
+}
+
+// Mirrors `Mat3Gpu`: glam's column-major Mat3, one vec4 per column (w unused).
+struct Mat3Gpu {
+    c0: vec4<f32>,
+    c1: vec4<f32>,
+    c2: vec4<f32>,
+}
+
+// Mirrors `StressGpu`: deviatoric Cauchy stress τ and artificial stress R (2.59).
+struct StressGpu {
+    tau: Mat3Gpu,
+    art: Mat3Gpu,
+}
+
+// Mirrors `GridSet`: the particle set a grid pass instance bins.
+struct GridSet {
+    n: u32,
+    cells: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+const STATUS_NONFINITE_LIQUID: u32 = 1u;
+const STATUS_NONFINITE_SOLID: u32 = 2u;
+const STATUS_DT_COLLAPSED: u32 = 4u;
+
+// Solid flags, see `scenario::SolidFlags`.
+const SOLID_KINEMATIC: u32 = 1u;
+const SOLID_MEMBRANE: u32 = 2u;
+
+// `sim::DtLimit` order.
+const LIMIT_VISCOUS: u32 = 0u;
+const LIMIT_SOUND: u32 = 1u;
+const LIMIT_FORCE: u32 = 2u;
+const LIMIT_FRICTION: u32 = 3u;
+const LIMIT_MAX: u32 = 4u;
+const LIMIT_FIXED: u32 = 5u;
+
+const NO_SLIP_BETA_MAX: f32 = 1.5;
+const JACOBI_SWEEPS: u32 = 6u;
+
+// ---- resources (bindings.rs `Slot`) ----
+@group(0) @binding(0) var<uniform> params: SimParams;
+@group(0) @binding(1) var<storage, read_write> step: StepState;
+@group(0) @binding(2) var<storage, read_write> objects: array<ObjectGpu>;
+// liquid: xyz position [m], w mass [kg]
+@group(0) @binding(3) var<storage, read_write> liquid_pos: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> liquid_vel: array<vec4<f32>>;
+// XSPH advection velocity ṽ (2.69)
+@group(0) @binding(5) var<storage, read_write> liquid_vel_adv: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> liquid_acc: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> liquid_acc0: array<vec4<f32>>;
+// ρ (2.46), nˡ, nˢ, p (2.53)
+@group(0) @binding(8) var<storage, read_write> liquid_dens: array<vec4<f32>>;
+// solid: xyz position, w mass
+@group(0) @binding(9) var<storage, read_write> solid_pos: array<vec4<f32>>;
+// xyz velocity, w membrane mass shown to the liquid
+@group(0) @binding(10) var<storage, read_write> solid_vel: array<vec4<f32>>;
+@group(0) @binding(11) var<storage, read_write> solid_vel_adv: array<vec4<f32>>;
+@group(0) @binding(12) var<storage, read_write> solid_acc: array<vec4<f32>>;
+@group(0) @binding(13) var<storage, read_write> solid_acc0: array<vec4<f32>>;
+// displacement increment Δt ṽ + ½Δt² a⁰ (D-11)
+@group(0) @binding(14) var<storage, read_write> solid_disp: array<vec4<f32>>;
+// ρ (2.47), nˡ, nˢ, p (2.52)
+@group(0) @binding(15) var<storage, read_write> solid_dens: array<vec4<f32>>;
+// dρ/dt of the current evaluation, D⁰
+@group(0) @binding(16) var<storage, read_write> solid_drho: array<vec2<f32>>;
+@group(0) @binding(17) var<storage, read_write> solid_flags: array<u32>;
+@group(0) @binding(18) var<storage, read_write> solid_f: array<Mat3Gpu>;
+@group(0) @binding(19) var<storage, read_write> solid_tau_art: array<StressGpu>;
+@group(0) @binding(20) var<storage, read_write> bond_table: array<u32>;
+@group(0) @binding(21) var<storage, read_write> bond_count: array<u32>;
+// boundary: xyz position, w liquid-equivalent mass
+@group(0) @binding(22) var<storage, read_write> boundary_pos: array<vec4<f32>>;
+// xyz velocity, w solid-equivalent mass
+@group(0) @binding(23) var<storage, read_write> boundary_vel: array<vec4<f32>>;
+// xyz rest position, w object index (bits)
+@group(0) @binding(24) var<storage, read_write> boundary_pos0: array<vec4<f32>>;
+@group(0) @binding(25) var<storage, read_write> liquid_order: array<u32>;
+@group(0) @binding(26) var<storage, read_write> liquid_cell_start: array<u32>;
+@group(0) @binding(27) var<storage, read_write> solid_order: array<u32>;
+@group(0) @binding(28) var<storage, read_write> solid_cell_start: array<u32>;
+@group(0) @binding(29) var<storage, read_write> boundary_order: array<u32>;
+@group(0) @binding(30) var<storage, read_write> boundary_cell_start: array<u32>;
+// grid passes: the set being binned (one bind group per set)
+@group(0) @binding(31) var<uniform> grid_set: GridSet;
+@group(0) @binding(32) var<storage, read_write> grid_pos: array<vec4<f32>>;
+@group(0) @binding(33) var<storage, read_write> grid_order: array<u32>;
+@group(0) @binding(34) var<storage, read_write> grid_cell_start: array<u32>;
+@group(0) @binding(35) var<storage, read_write> grid_cell_of: array<u32>;
+@group(0) @binding(36) var<storage, read_write> grid_cursor: array<atomic<u32>>;
+
+// ---- small helpers mirroring glam (same operation order) ----
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return (a.x * b.x) + (a.y * b.y) + (a.z * b.z);
+}
+
+fn len3(a: vec3<f32>) -> f32 {
+    return sqrt(dot3(a, a));
+}
+
+fn is_finite_f32(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
+}
+
+fn is_finite3(v: vec3<f32>) -> bool {
+    return is_finite_f32(v.x) && is_finite_f32(v.y) && is_finite_f32(v.z);
+}
+
+// Rust f32::round: half away from zero (WGSL round() is half to even).
+fn round_away(x: f32) -> f32 {
+    let t = trunc(x);
+    if (abs(x - t) >= 0.5) {
+        return t + select(1.0, -1.0, x < 0.0);
+    }
+    return t;
+}
+
+// Rust f32::signum (NaN passes through as NaN via copysign semantics of 1.0).
+fn signum(x: f32) -> f32 {
+    return select(1.0, -1.0, (bitcast<u32>(x) & 0x80000000u) != 0u);
+}
+
+// compiler-rt __powisf2, as used by Rust's f32::powi.
+fn powi(a_in: f32, b_in: i32) -> f32 {
+    var a = a_in;
+    var b = b_in;
+    let recip = b < 0;
+    var r = 1.0;
+    loop {
+        if ((b & 1) != 0) {
+            r = r * a;
+        }
+        b = b / 2;
+        if (b == 0) {
+            break;
+        }
+        a = a * a;
+    }
+    if (recip) {
+        return 1.0 / r;
+    }
+    return r;
+}
+
+fn m3(c0: vec3<f32>, c1: vec3<f32>, c2: vec3<f32>) -> mat3x3<f32> {
+    return mat3x3<f32>(c0, c1, c2);
+}
+
+fn m3_load(m: Mat3Gpu) -> mat3x3<f32> {
+    return mat3x3<f32>(m.c0.xyz, m.c1.xyz, m.c2.xyz);
+}
+
+fn m3_store(m: mat3x3<f32>) -> Mat3Gpu {
+    return Mat3Gpu(vec4<f32>(m[0], 0.0), vec4<f32>(m[1], 0.0), vec4<f32>(m[2], 0.0));
+}
+
+// glam Mat3::mul_vec3: x_axis·v.x, + y_axis·v.y, + z_axis·v.z.
+fn m3_mul_v(m: mat3x3<f32>, v: vec3<f32>) -> vec3<f32> {
+    var res = m[0] * v.x;
+    res = res + m[1] * v.y;
+    res = res + m[2] * v.z;
+    return res;
+}
+
+fn m3_mul(a: mat3x3<f32>, b: mat3x3<f32>) -> mat3x3<f32> {
+    return m3(m3_mul_v(a, b[0]), m3_mul_v(a, b[1]), m3_mul_v(a, b[2]));
+}
+
+fn m3_add(a: mat3x3<f32>, b: mat3x3<f32>) -> mat3x3<f32> {
+    return m3(a[0] + b[0], a[1] + b[1], a[2] + b[2]);
+}
+
+fn m3_sub(a: mat3x3<f32>, b: mat3x3<f32>) -> mat3x3<f32> {
+    return m3(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+}
+
+fn m3_scale(a: mat3x3<f32>, s: f32) -> mat3x3<f32> {
+    return m3(a[0] * s, a[1] * s, a[2] * s);
+}
+
+fn m3_div(a: mat3x3<f32>, s: f32) -> mat3x3<f32> {
+    return m3(a[0] / s, a[1] / s, a[2] / s);
+}
+
+fn m3_transpose(a: mat3x3<f32>) -> mat3x3<f32> {
+    return m3(vec3<f32>(a[0].x, a[1].x, a[2].x), vec3<f32>(a[0].y, a[1].y, a[2].y), vec3<f32>(a[0].z, a[1].z, a[2].z));
+}
+
+fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y);
+}
+
+// glam Mat3::determinant: x_axis · (y_axis × z_axis).
+fn m3_det(a: mat3x3<f32>) -> f32 {
+    return dot3(a[0], cross3(a[1], a[2]));
+}
+
+fn m3_identity() -> mat3x3<f32> {
+    return m3(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
+}
+
+// u ⊗ w (M_ab = u_a w_b), columns u·w_b.
+fn outer3(u: vec3<f32>, w: vec3<f32>) -> mat3x3<f32> {
+    return m3(u * w.x, u * w.y, u * w.z);
+}
+
+// ---- kernels (2.29)–(2.39), SPEC D-1/D-4; twins in src/sim/kernels.rs ----
+// Cubic spline W_C(r; h) (2.29).
+fn w_cubic(k: KernelConsts, r: f32) -> f32 {
+    let q = r / k.h;
+    if (q < 1.0) {
+        return k.alpha_c * (1.0 - 1.5 * q * q + 0.75 * q * q * q);
+    } else if (q < 2.0) {
+        let t = 2.0 - q;
+        return k.alpha_c * 0.25 * t * t * t;
+    }
+    return 0.0;
+}
+
+// g of ∇W_C = g · x_ij (2.30).
+fn grad_cubic_factor(k: KernelConsts, r: f32) -> f32 {
+    let q = r / k.h;
+    if (r <= 0.0 || q >= 2.0) {
+        return 0.0;
+    }
+    var dw: f32;
+    if (q < 1.0) {
+        dw = 3.0 * q - 2.25 * q * q;
+    } else {
+        let t = 2.0 - q;
+        dw = 0.75 * t * t;
+    }
+    return -(k.alpha_c / k.h) * dw / r;
+}
+
+// Poly6 W6(r; R) (2.35).
+fn w_poly6(k: KernelConsts, r: f32) -> f32 {
+    if (r >= k.r) {
+        return 0.0;
+    }
+    let s = r / k.r;
+    let t = 1.0 - s * s;
+    return k.alpha_6 * t * t * t;
+}
+
+// g of ∇W_S = g · x_ij for the spiky kernel (2.39).
+fn grad_spiky_factor(k: KernelConsts, r: f32) -> f32 {
+    if (r <= 0.0 || r >= k.r) {
+        return 0.0;
+    }
+    let t = 1.0 - r / k.r;
+    return -(3.0 * k.alpha_s / k.r) * t * t / r;
+}
+
+// ∇²W_V(r; R) (2.34, SPEC D-4).
+fn lap_viscosity(k: KernelConsts, r: f32) -> f32 {
+    if (r >= k.r) {
+        return 0.0;
+    }
+    return k.c_v * (1.0 - r / k.r);
+}
+
+// ---- grid (twin: src/sim/cpu/grid.rs) ----
+// Integer cell coordinates of x, clamped into the grid (grid_cell_coords).
+fn cell_coords(x: vec3<f32>) -> vec3<i32> {
+    var c = vec3<i32>(0, 0, 0);
+    for (var a = 0; a < 3; a++) {
+        let f = floor((x[a] - params.grid_min[a]) / params.grid_cell[a]);
+        let n = i32(params.grid_n[a]);
+        var k = 0;
+        if (is_finite_f32(f)) {
+            k = i32(f);
+        }
+        c[a] = clamp(k, 0, n - 1);
+    }
+    return c;
+}
+
+fn cell_index(c: vec3<i32>) -> u32 {
+    return u32(c.x) + params.grid_n.x * (u32(c.y) + params.grid_n.y * u32(c.z));
+}
+
+// Range of neighbour-cell offsets k (k = 9(dz+1) + 3(dy+1) + (dx+1)): 27 cells in 3-D, 9 in 2-D.
+fn nbr_begin() -> u32 {
+    return select(9u, 0u, params.switches.x != 0u);
+}
+
+fn nbr_end() -> u32 {
+    return select(18u, 27u, params.switches.x != 0u);
+}
+
+// Cell index of neighbour offset k of cell c, or -1 when it lies outside a non-periodic axis.
+fn nbr_cell(c: vec3<i32>, k: u32) -> i32 {
+    let off = vec3<i32>(i32(k % 3u) - 1, i32((k / 3u) % 3u) - 1, i32(k / 9u) - 1);
+    var nc = c + off;
+    for (var a = 0; a < 3; a++) {
+        let n = i32(params.grid_n[a]);
+        if (nc[a] < 0 || nc[a] >= n) {
+            if (params.period[a] > 0.0) {
+                nc[a] = ((nc[a] % n) + n) % n;
+            } else {
+                return -1;
+            }
+        }
+    }
+    return i32(cell_index(nc));
+}
+
+// Minimum-image difference on periodic axes (SPEC §4.3).
+fn min_image(d_in: vec3<f32>) -> vec3<f32> {
+    var d = d_in;
+    for (var a = 0; a < 3; a++) {
+        let l = params.period[a];
+        if (l > 0.0) {
+            d[a] = d[a] - l * round_away(d[a] / l);
+        }
+    }
+    return d;
+}

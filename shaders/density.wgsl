@@ -1,0 +1,153 @@
+// density.wgsl — densities, volume fractions and penalty pressures; twin: src/sim/cpu/density.rs.
+//
+// * density_liquid: ρˡ by summation over L ∪ B_l (2.46) (membrane particles count as boundary),
+//   nˡ = ρ/ρ₀ˡ, nˢ by summation of the solid (SPEC D-8), pˡ = k(nˢ + nˡ − 1 + C₁nˢnˡ) (2.53)/(3.5, D-9),
+//   clamped at 0 unless liquid_tension.
+// * density_solid: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
+//   nˡ by summation of the liquid (membrane override 1 − nˢ_sat, §3.1.3),
+//   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52).
+// Neighbour sums run in the canonical order of grid.wgsl, as on the CPU.
+#import common
+
+@compute @workgroup_size(64)
+fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.x) {
+        return;
+    }
+    let kl = params.k_liquid;
+    let kx = params.k_cross;
+    let xi = liquid_pos[i].xyz;
+    let ci = cell_coords(xi);
+    let kb = nbr_begin();
+    let ke = nbr_end();
+    let r2l = kl.r * kl.r;
+    let r2x = kx.r * kx.r;
+    var rho = 0.0;
+    // liquid (2.46)
+    for (var k = kb; k < ke; k++) {
+        let c = nbr_cell(ci, k);
+        if (c < 0) { continue; }
+        for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
+            let j = liquid_order[q];
+            let pj = liquid_pos[j];
+            let xij = min_image(xi - pj.xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2l) {
+                rho += pj.w * w_poly6(kl, sqrt(r2));
+            }
+        }
+    }
+    // wall particles (liquid-equivalent mass)
+    for (var k = kb; k < ke; k++) {
+        let c = nbr_cell(ci, k);
+        if (c < 0) { continue; }
+        for (var q = boundary_cell_start[c]; q < boundary_cell_start[c + 1]; q++) {
+            let j = boundary_order[q];
+            let pj = boundary_pos[j];
+            let xij = min_image(xi - pj.xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2l) {
+                rho += pj.w * w_poly6(kl, sqrt(r2));
+            }
+        }
+    }
+    // One pass over the solid (R_× ≥ R_l): membrane particles as liquid boundary, and nˢ (D-8).
+    var sum_s = 0.0;
+    for (var k = kb; k < ke; k++) {
+        let c = nbr_cell(ci, k);
+        if (c < 0) { continue; }
+        for (var q = solid_cell_start[c]; q < solid_cell_start[c + 1]; q++) {
+            let j = solid_order[q];
+            let pj = solid_pos[j];
+            let xij = min_image(xi - pj.xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2x) {
+                let r = sqrt(r2);
+                if (r < kl.r && (solid_flags[j] & SOLID_MEMBRANE) != 0u) {
+                    rho += solid_vel[j].w * w_poly6(kl, r);
+                }
+                sum_s += pj.w * w_poly6(kx, r);
+            }
+        }
+    }
+    let n_s = sum_s / params.rho0_s;
+    let n_l = rho / params.rho0_l;
+    let raw = params.k_l * (n_s + n_l - 1.0 + params.c1 * n_s * n_l);
+    var pr = raw;
+    if (params.switches.z == 0u) {
+        pr = max(raw, 0.0);
+    }
+    // CPU: n_l = rho / rho0_l computed again from the stored ρ (same operation).
+    liquid_dens[i] = vec4<f32>(rho, n_l, n_s, pr);
+}
+
+@compute @workgroup_size(64)
+fn density_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.y) {
+        return;
+    }
+    let ks = params.k_solid;
+    let kx = params.k_cross;
+    let support = 2.0 * ks.h;
+    let r2s = support * support;
+    let r2x = kx.r * kx.r;
+    let xi = solid_pos[i].xyz;
+    let vi = solid_vel[i].xyz;
+    let ci = cell_coords(xi);
+    let kb = nbr_begin();
+    let ke = nbr_end();
+    var drho = 0.0;
+    // continuity (2.47) over current solid neighbours
+    for (var k = kb; k < ke; k++) {
+        let c = nbr_cell(ci, k);
+        if (c < 0) { continue; }
+        for (var q = solid_cell_start[c]; q < solid_cell_start[c + 1]; q++) {
+            let j = solid_order[q];
+            let pj = solid_pos[j];
+            let xij = min_image(xi - pj.xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2s && j != i) {
+                drho += pj.w * dot3(vi - solid_vel[j].xyz, xij * grad_cubic_factor(ks, sqrt(r2)));
+            }
+        }
+    }
+    // ... and over B_s (solid-equivalent mass)
+    for (var k = kb; k < ke; k++) {
+        let c = nbr_cell(ci, k);
+        if (c < 0) { continue; }
+        for (var q = boundary_cell_start[c]; q < boundary_cell_start[c + 1]; q++) {
+            let j = boundary_order[q];
+            let xij = min_image(xi - boundary_pos[j].xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2s) {
+                let vb = boundary_vel[j];
+                drho += vb.w * dot3(vi - vb.xyz, xij * grad_cubic_factor(ks, sqrt(r2)));
+            }
+        }
+    }
+    var n_l = 1.0 - params.n_sat;
+    if ((solid_flags[i] & SOLID_MEMBRANE) == 0u) {
+        var sum = 0.0;
+        for (var k = kb; k < ke; k++) {
+            let c = nbr_cell(ci, k);
+            if (c < 0) { continue; }
+            for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
+                let j = liquid_order[q];
+                let pj = liquid_pos[j];
+                let xij = min_image(xi - pj.xyz);
+                let r2 = dot3(xij, xij);
+                if (r2 < r2x) {
+                    sum += pj.w * w_poly6(kx, sqrt(r2));
+                }
+            }
+        }
+        n_l = sum / params.rho0_l;
+    }
+    let rho = solid_dens[i].x;
+    let n_s = rho / params.rho0_s;
+    let pr = params.k_s * (n_s - params.n_sat) + params.k_sat * (n_s + n_l - 1.0);
+    solid_dens[i] = vec4<f32>(rho, n_l, n_s, pr);
+    solid_drho[i].x = drho;
+}

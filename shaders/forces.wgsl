@@ -1,0 +1,377 @@
+// forces.wgsl — accelerations of liquid and solid particles and XSPH velocities; twin:
+// src/sim/cpu/forces.rs (SPEC §3.6–3.13).
+//
+// Liquid (2.50): −κ_S nˡ∇p with the spiky kernel (D-15, D-16), mirrored boundary pressure with the
+// hydrostatic wall extrapolation (§4.1, D-23), viscosity κ_V(η/ρ_i)Σ(m_j/ρ_j)(v_j − v_i)∇²W_V (D-7, D-17)
+// with the no-slip ghost factor, pairwise friction (2.17, D-18), g.
+// Solid (2.48): deviatoric stress over bonds, −nˢ∇p, artificial stress (2.59)–(2.60), artificial
+// viscosity (2.54)–(2.58), boundary contact, friction reaction, membrane reactions gathered from the
+// liquid (§4.1: a gather, no atomics), g. XSPH (2.69) for both.
+#import common
+
+// Monaghan's Π_ij (2.54)–(2.58); zero for separating pairs.
+fn artificial_viscosity(vij: vec3<f32>, xij: vec3<f32>, r: f32, h: f32, c: f32, rho_bar: f32) -> f32 {
+    let vx = dot3(vij, xij);
+    if (vx >= 0.0) {
+        return 0.0;
+    }
+    let mu = h * vx / (r * r + params.av_gamma * h * h);
+    return (-params.av_alpha * c * mu + params.av_beta * mu * mu) / rho_bar;
+}
+
+// K_ij = K̄ max(0, 1 − ½(nˢ_i + nˢ_j)) (D-18).
+fn friction_coefficient(ns_i: f32, ns_j: f32) -> f32 {
+    return params.kbar * max(1.0 - 0.5 * (ns_i + ns_j), 0.0);
+}
+
+// No-slip factor 1 + β of the viscous wall term (forces.rs `no_slip_factor`, SPEC §4.1).
+fn no_slip_factor(obj: u32, xi: vec3<f32>, xb: vec3<f32>) -> f32 {
+    let o = objects[obj];
+    let ga = o.geom_a.xyz;
+    var closest: vec3<f32>;
+    if (o.kind == 0u) {
+        closest = min(max(xi, ga), o.geom_b.xyz);
+    } else if (o.kind == 1u) {
+        let d = xi - ga;
+        let len = len3(d);
+        if (len <= 1e-30) {
+            return 1.0 + NO_SLIP_BETA_MAX;
+        }
+        closest = ga + d * (o.geom_b.x / len);
+    } else {
+        return 1.0;
+    }
+    let off = xi - closest;
+    let di = len3(off);
+    if ((o.kind == 1u && len3(xi - ga) <= o.geom_b.x) || di <= 1e-30) {
+        return 1.0 + NO_SLIP_BETA_MAX;
+    }
+    let n = off / di;
+    let db = max(dot3(closest - xb, n), 0.0);
+    return 1.0 + min(db / di, NO_SLIP_BETA_MAX);
+}
+
+// Acceleration of a liquid particle from one boundary-like neighbour (forces.rs
+// `liquid_from_boundary`); density < 0 is the mirror mode with hydrostatic p_b.
+fn liquid_from_boundary(rho: f32, pr: f32, n_l: f32, vi: vec3<f32>, m_b: f32, vb: vec3<f32>, xib: vec3<f32>, r: f32,
+                        density: f32, pressure: f32, no_slip: f32, g: vec3<f32>) -> vec3<f32> {
+    let k = params.k_liquid;
+    let grad = xib * grad_spiky_factor(k, r);
+    var bracket: f32;
+    if (density < 0.0) {
+        let pb = max(pr + rho * dot3(g, -xib), 0.0);
+        bracket = (max(pr, 0.0) + pb) / (rho * rho);
+    } else {
+        bracket = pr / (rho * rho) + pressure / (density * density);
+    }
+    var a = grad * (-n_l * m_b * bracket * params.kappa_s);
+    a += (vb - vi) * (no_slip * params.kappa_v * params.eta / rho * (m_b / rho) * lap_viscosity(k, r));
+    return a;
+}
+
+fn liquid_gravity() -> vec3<f32> {
+    return select(vec3<f32>(0.0), params.gravity.xyz, params.gravity.w != 0.0);
+}
+
+@compute @workgroup_size(64)
+fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.x) {
+        return;
+    }
+    let kl = params.k_liquid;
+    let kx = params.k_cross;
+    let g = liquid_gravity();
+    let xi = liquid_pos[i].xyz;
+    let vi = liquid_vel[i].xyz;
+    let di = liquid_dens[i];
+    let rho = di.x;
+    let n_l = di.y;
+    let n_s = di.z;
+    let pr = di.w;
+    let pi = pr / (rho * rho);
+    let ci = cell_coords(xi);
+    let kb = nbr_begin();
+    let ke = nbr_end();
+    let r2l = kl.r * kl.r;
+    var a = vec3<f32>(0.0);
+    for (var k = kb; k < ke; k++) {
+        let c = nbr_cell(ci, k);
+        if (c < 0) { continue; }
+        for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
+            let j = liquid_order[q];
+            let pj4 = liquid_pos[j];
+            let xij = min_image(xi - pj4.xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2l && j != i) {
+                let r = sqrt(r2);
+                let mj = pj4.w;
+                let dj = liquid_dens[j];
+                let vj = liquid_vel[j].xyz;
+                let grad = xij * grad_spiky_factor(kl, r);
+                let pj = dj.w / (dj.x * dj.x);
+                a += grad * (-n_l * mj * (pi + pj) * params.kappa_s);
+                a += (vj - vi) * (params.kappa_v * params.eta / rho * (mj / dj.x) * lap_viscosity(kl, r));
+                if (params.switches.y != 0u) {
+                    let pij = artificial_viscosity(vi - vj, xij, r, kl.h, params.c_l, 0.5 * (rho + dj.x));
+                    a -= grad * (mj * pij);
+                }
+            }
+        }
+    }
+    for (var k = kb; k < ke; k++) {
+        let c = nbr_cell(ci, k);
+        if (c < 0) { continue; }
+        for (var q = boundary_cell_start[c]; q < boundary_cell_start[c + 1]; q++) {
+            let j = boundary_order[q];
+            let pb = boundary_pos[j];
+            let xij = min_image(xi - pb.xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2l) {
+                let obj = bitcast<u32>(boundary_pos0[j].w);
+                let slip = no_slip_factor(obj, xi, pb.xyz);
+                let o = objects[obj];
+                a += liquid_from_boundary(rho, pr, n_l, vi, pb.w, boundary_vel[j].xyz, xij, sqrt(r2), o.density, o.pressure, slip, g);
+            }
+        }
+    }
+    // One pass over the solid (R_× ≥ R_l): membrane particles as boundary, and friction (2.17).
+    let r2x = kx.r * kx.r;
+    var f = vec3<f32>(0.0);
+    for (var k = kb; k < ke; k++) {
+        let c = nbr_cell(ci, k);
+        if (c < 0) { continue; }
+        for (var q = solid_cell_start[c]; q < solid_cell_start[c + 1]; q++) {
+            let j = solid_order[q];
+            let pj4 = solid_pos[j];
+            let xij = min_image(xi - pj4.xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2x) {
+                let r = sqrt(r2);
+                let vj = solid_vel[j];
+                if (r < kl.r && (solid_flags[j] & SOLID_MEMBRANE) != 0u) {
+                    a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xij, r, -1.0, 0.0, 1.0, g);
+                }
+                if (params.kbar > 0.0) {
+                    let dj = solid_dens[j];
+                    let kf = friction_coefficient(n_s, dj.z);
+                    f += (vi - vj.xyz) * (pj4.w / dj.x * kf * w_poly6(kx, r));
+                }
+            }
+        }
+    }
+    if (params.kbar > 0.0) {
+        a -= f / rho;
+    }
+    liquid_acc[i] = vec4<f32>(a + g, 0.0);
+}
+
+@compute @workgroup_size(64)
+fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.y) {
+        return;
+    }
+    if ((solid_flags[i] & SOLID_KINEMATIC) != 0u) {
+        solid_acc[i] = vec4<f32>(0.0);
+        return;
+    }
+    let ks = params.k_solid;
+    let kl = params.k_liquid;
+    let kx = params.k_cross;
+    let support = 2.0 * ks.h;
+    let r2s = support * support;
+    let cap = params.counts.w;
+    let g_l = liquid_gravity();
+    let pi4 = solid_pos[i];
+    let xi = pi4.xyz;
+    let vi4 = solid_vel[i];
+    let vi = vi4.xyz;
+    let di = solid_dens[i];
+    let rho = di.x;
+    let pr = di.w;
+    let n_s = di.z;
+    let inv2 = 1.0 / (rho * rho);
+    let st_i = solid_tau_art[i];
+    let tau_i = m3_scale(m3_load(st_i.tau), inv2);
+    let art_i = m3_load(st_i.art);
+    var a = vec3<f32>(0.0);
+    // deviatoric stress over intact bonds (2.48), (2.43)
+    let nb = bond_count[i];
+    for (var b = 0u; b < nb; b++) {
+        let j = bond_table[i * cap + b];
+        let pj4 = solid_pos[j];
+        let xij = min_image(xi - pj4.xyz);
+        let grad = xij * grad_cubic_factor(ks, len3(xij));
+        let rj = solid_dens[j].x;
+        let tj = m3_div(m3_load(solid_tau_art[j].tau), rj * rj);
+        a += m3_mul_v(m3_add(tau_i, tj), grad) * pj4.w;
+    }
+    // isotropic pressure, artificial stress and artificial viscosity over current neighbours
+    let pi = pr * inv2;
+    let ci = cell_coords(xi);
+    let kb = nbr_begin();
+    let ke = nbr_end();
+    for (var k = kb; k < ke; k++) {
+        let c = nbr_cell(ci, k);
+        if (c < 0) { continue; }
+        for (var q = solid_cell_start[c]; q < solid_cell_start[c + 1]; q++) {
+            let j = solid_order[q];
+            let pj4 = solid_pos[j];
+            let xij = min_image(xi - pj4.xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2s && j != i) {
+                let r = sqrt(r2);
+                let dj = solid_dens[j];
+                let grad = xij * grad_cubic_factor(ks, r);
+                let pj = dj.w / (dj.x * dj.x);
+                var acc = grad * (-n_s * (pi + pj));
+                if (params.as_eps > 0.0) {
+                    let f = w_cubic(ks, r) / params.wc_dx;
+                    acc += m3_mul_v(m3_add(art_i, m3_load(solid_tau_art[j].art)), grad) * powi(f, params.as_exp);
+                }
+                let pij = artificial_viscosity(vi - solid_vel[j].xyz, xij, r, ks.h, params.c_s, 0.5 * (rho + dj.x));
+                acc -= grad * pij;
+                a += acc * pj4.w;
+            }
+        }
+    }
+    // boundary contact (mirror pressure, SPEC §4.1) and artificial viscosity against walls
+    for (var k = kb; k < ke; k++) {
+        let c = nbr_cell(ci, k);
+        if (c < 0) { continue; }
+        for (var q = boundary_cell_start[c]; q < boundary_cell_start[c + 1]; q++) {
+            let j = boundary_order[q];
+            let xib = min_image(xi - boundary_pos[j].xyz);
+            let r2 = dot3(xib, xib);
+            if (r2 < r2s) {
+                let r = sqrt(r2);
+                let grad = xib * grad_cubic_factor(ks, r);
+                let o = objects[bitcast<u32>(boundary_pos0[j].w)];
+                var bracket: f32;
+                if (o.density < 0.0) {
+                    bracket = 2.0 * max(pr, 0.0) * inv2;
+                } else {
+                    bracket = pi + o.pressure / (o.density * o.density);
+                }
+                let vb = boundary_vel[j];
+                let pib = artificial_viscosity(vi - vb.xyz, xib, r, ks.h, params.c_s, rho);
+                a += grad * (vb.w * (-n_s * bracket - pib));
+            }
+        }
+    }
+    // friction reaction (2.17, D-18)
+    if (params.kbar > 0.0) {
+        let r2x = kx.r * kx.r;
+        var f = vec3<f32>(0.0);
+        for (var k = kb; k < ke; k++) {
+            let c = nbr_cell(ci, k);
+            if (c < 0) { continue; }
+            for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
+                let j = liquid_order[q];
+                let pj4 = liquid_pos[j];
+                let xij = min_image(xi - pj4.xyz);
+                let r2 = dot3(xij, xij);
+                if (r2 < r2x) {
+                    let dj = liquid_dens[j];
+                    let kf = friction_coefficient(n_s, dj.z);
+                    f += (vi - liquid_vel[j].xyz) * (pj4.w / dj.x * kf * w_poly6(kx, sqrt(r2)));
+                }
+            }
+        }
+        a -= f / rho;
+    }
+    // membrane particles take the reaction of the liquid–membrane boundary forces (§4.1)
+    if ((solid_flags[i] & SOLID_MEMBRANE) != 0u) {
+        let r2l = kl.r * kl.r;
+        var f = vec3<f32>(0.0);
+        for (var k = kb; k < ke; k++) {
+            let c = nbr_cell(ci, k);
+            if (c < 0) { continue; }
+            for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
+                let j = liquid_order[q];
+                let pj4 = liquid_pos[j];
+                let xji = min_image(xi - pj4.xyz);
+                let r2 = dot3(xji, xji);
+                if (r2 < r2l) {
+                    let xjb = -xji;
+                    let dj = liquid_dens[j];
+                    let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, liquid_vel[j].xyz, vi4.w, vi, xjb, sqrt(r2), -1.0, 0.0, 1.0, g_l);
+                    f -= on_j * pj4.w;
+                }
+            }
+        }
+        a += f / pi4.w;
+    }
+    solid_acc[i] = vec4<f32>(a + params.gravity.xyz, 0.0);
+}
+
+// XSPH (2.69) of the liquid: ṽ_i = v_i + ε̃ Σ (m_j/ρ̄_ij)(v_j − v_i)W6.
+@compute @workgroup_size(64)
+fn forces_xsph_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.x) {
+        return;
+    }
+    let vi = liquid_vel[i].xyz;
+    let eps = params.xsph_l;
+    if (eps == 0.0) {
+        liquid_vel_adv[i] = vec4<f32>(vi, 0.0);
+        return;
+    }
+    let k = params.k_liquid;
+    let xi = liquid_pos[i].xyz;
+    let rho_i = liquid_dens[i].x;
+    let ci = cell_coords(xi);
+    let r2k = k.r * k.r;
+    var d = vec3<f32>(0.0);
+    for (var kk = nbr_begin(); kk < nbr_end(); kk++) {
+        let c = nbr_cell(ci, kk);
+        if (c < 0) { continue; }
+        for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
+            let j = liquid_order[q];
+            let pj4 = liquid_pos[j];
+            let xij = min_image(xi - pj4.xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2k && j != i) {
+                d += (liquid_vel[j].xyz - vi) * (pj4.w / (0.5 * (rho_i + liquid_dens[j].x)) * w_poly6(k, sqrt(r2)));
+            }
+        }
+    }
+    liquid_vel_adv[i] = vec4<f32>(vi + d * eps, 0.0);
+}
+
+// XSPH (2.69) of the solid (poly6 with R_s); kinematic particles keep v.
+@compute @workgroup_size(64)
+fn forces_xsph_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.y) {
+        return;
+    }
+    let vi = solid_vel[i].xyz;
+    let eps = params.xsph_s;
+    if (eps == 0.0 || (solid_flags[i] & SOLID_KINEMATIC) != 0u) {
+        solid_vel_adv[i] = vec4<f32>(vi, 0.0);
+        return;
+    }
+    let k = params.k_solid;
+    let xi = solid_pos[i].xyz;
+    let rho_i = solid_dens[i].x;
+    let ci = cell_coords(xi);
+    let r2k = k.r * k.r;
+    var d = vec3<f32>(0.0);
+    for (var kk = nbr_begin(); kk < nbr_end(); kk++) {
+        let c = nbr_cell(ci, kk);
+        if (c < 0) { continue; }
+        for (var q = solid_cell_start[c]; q < solid_cell_start[c + 1]; q++) {
+            let j = solid_order[q];
+            let pj4 = solid_pos[j];
+            let xij = min_image(xi - pj4.xyz);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2k && j != i) {
+                d += (solid_vel[j].xyz - vi) * (pj4.w / (0.5 * (rho_i + solid_dens[j].x)) * w_poly6(k, sqrt(r2)));
+            }
+        }
+    }
+    solid_vel_adv[i] = vec4<f32>(vi + d * eps, 0.0);
+}

@@ -1,0 +1,166 @@
+// integrate.wgsl — predictor–corrector leapfrog (2.64)–(2.68) with XSPH advection (2.69); twin:
+// src/sim/cpu/integrate.rs (SPEC §5.1). Δt is read from the GPU-resident `step.dt` (dt.wgsl).
+// Also: integrate_boundary (placing the virtual boundary particles, the twin of
+// CpuSolver::move_boundaries) and integrate_check_* (the divergence check of CpuSolver).
+#import common
+
+// Rust f32::rem_euclid (WGSL % on floats is x − y·trunc(x/y); exact for |x| < 2|y|, our case).
+fn rem_euclid(x: f32, m: f32) -> f32 {
+    let r = x % m;
+    if (r < 0.0) {
+        return r + abs(m);
+    }
+    return r;
+}
+
+fn wrap_periodic(x_in: vec3<f32>) -> vec3<f32> {
+    var x = x_in;
+    for (var a = 0; a < 3; a++) {
+        if (params.period[a] > 0.0) {
+            let lo = params.domain_min[a];
+            let len = params.domain_max[a] - lo;
+            x[a] = lo + rem_euclid(x[a] - lo, len);
+        }
+    }
+    return x;
+}
+
+// a⁰ ← a, v^p = vⁿ + Δt a⁰ (2.64).
+@compute @workgroup_size(64)
+fn integrate_predict_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.x) {
+        return;
+    }
+    let dt = step.dt;
+    let a = liquid_acc[i];
+    liquid_acc0[i] = a;
+    liquid_vel[i] = vec4<f32>(liquid_vel[i].xyz + a.xyz * dt, 0.0);
+}
+
+// a⁰ ← a, D⁰ ← D, Δx = Δt ṽ + ½Δt² a⁰ (D-11), v^p = vⁿ + Δt a⁰; kinematic particles stay at rest.
+@compute @workgroup_size(64)
+fn integrate_predict_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.y) {
+        return;
+    }
+    let dt = step.dt;
+    let half_dt2 = 0.5 * dt * dt;
+    let a0 = solid_acc[i];
+    solid_acc0[i] = a0;
+    let d = solid_drho[i];
+    solid_drho[i] = vec2<f32>(d.x, d.x);
+    let v4 = solid_vel[i];
+    if ((solid_flags[i] & SOLID_KINEMATIC) != 0u) {
+        solid_disp[i] = vec4<f32>(0.0);
+        solid_vel[i] = vec4<f32>(0.0, 0.0, 0.0, v4.w);
+    } else {
+        solid_disp[i] = vec4<f32>(solid_vel_adv[i].xyz * dt + a0.xyz * half_dt2, 0.0);
+        solid_vel[i] = vec4<f32>(v4.xyz + a0.xyz * dt, v4.w);
+    }
+}
+
+// xⁿ⁺¹ = xⁿ + Δt ṽⁿ + ½Δt² a⁰ (2.65).
+@compute @workgroup_size(64)
+fn integrate_advance_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.x) {
+        return;
+    }
+    let dt = step.dt;
+    let half_dt2 = 0.5 * dt * dt;
+    let p = liquid_pos[i];
+    let x = wrap_periodic(p.xyz + liquid_vel_adv[i].xyz * dt + liquid_acc0[i].xyz * half_dt2);
+    liquid_pos[i] = vec4<f32>(x, p.w);
+}
+
+// xⁿ⁺¹ = xⁿ + Δx, ρ^p = ρⁿ + Δt D⁰ (2.66).
+@compute @workgroup_size(64)
+fn integrate_advance_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.y) {
+        return;
+    }
+    let dt = step.dt;
+    let p = solid_pos[i];
+    solid_pos[i] = vec4<f32>(wrap_periodic(p.xyz + solid_disp[i].xyz), p.w);
+    if ((solid_flags[i] & SOLID_KINEMATIC) == 0u) {
+        solid_dens[i].x = solid_dens[i].x + dt * solid_drho[i].y;
+    }
+}
+
+// Virtual boundary particles at the objects' current pose: x = x⁰ + d(t), v = v(t) (SPEC §4.1).
+@compute @workgroup_size(64)
+fn integrate_boundary(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.z) {
+        return;
+    }
+    let p0 = boundary_pos0[i];
+    let o = objects[bitcast<u32>(p0.w)];
+    boundary_pos[i] = vec4<f32>(p0.xyz + o.disp.xyz, boundary_pos[i].w);
+    boundary_vel[i] = vec4<f32>(o.vel.xyz, boundary_vel[i].w);
+}
+
+// vⁿ⁺¹ = v^p + ½Δt(a¹ − a⁰) (2.67), then relaxation damping (SPEC §7.5).
+@compute @workgroup_size(64)
+fn integrate_correct_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.x) {
+        return;
+    }
+    let dt = step.dt;
+    let damp = max(1.0 - params.damping * dt, 0.0);
+    let v = liquid_vel[i].xyz;
+    liquid_vel[i] = vec4<f32>((v + (liquid_acc[i].xyz - liquid_acc0[i].xyz) * (0.5 * dt)) * damp, 0.0);
+}
+
+// vⁿ⁺¹ (2.67) and ρⁿ⁺¹ = ρ^p + ½Δt(D¹ − D⁰) (2.68).
+@compute @workgroup_size(64)
+fn integrate_correct_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.y) {
+        return;
+    }
+    if ((solid_flags[i] & SOLID_KINEMATIC) != 0u) {
+        return;
+    }
+    let dt = step.dt;
+    let damp = max(1.0 - params.damping * dt, 0.0);
+    let v4 = solid_vel[i];
+    solid_vel[i] = vec4<f32>((v4.xyz + (solid_acc[i].xyz - solid_acc0[i].xyz) * (0.5 * dt)) * damp, v4.w);
+    let d = solid_drho[i];
+    solid_dens[i].x = solid_dens[i].x + 0.5 * dt * (d.x - d.y);
+}
+
+// Divergence check (CpuSolver::check_divergence): non-finite x, v, ρ or |v| > max_speed.
+@compute @workgroup_size(64)
+fn integrate_check_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.x) {
+        return;
+    }
+    let x = liquid_pos[i].xyz;
+    let v = liquid_vel[i].xyz;
+    let vmax2 = params.max_speed * params.max_speed;
+    if (!(is_finite3(x) && is_finite3(v)) || dot3(v, v) > vmax2 || !is_finite_f32(liquid_dens[i].x)) {
+        atomicOr(&step.status, STATUS_NONFINITE_LIQUID);
+        atomicMin(&step.bad_liquid, i);
+    }
+}
+
+@compute @workgroup_size(64)
+fn integrate_check_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.y) {
+        return;
+    }
+    let x = solid_pos[i].xyz;
+    let v = solid_vel[i].xyz;
+    let vmax2 = params.max_speed * params.max_speed;
+    if (!(is_finite3(x) && is_finite3(v)) || dot3(v, v) > vmax2 || !is_finite_f32(solid_dens[i].x)) {
+        atomicOr(&step.status, STATUS_NONFINITE_SOLID);
+        atomicMin(&step.bad_solid, i);
+    }
+}

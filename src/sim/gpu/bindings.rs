@@ -1,0 +1,138 @@
+//! Every GPU resource of the simulation at its fixed binding (STYLE §5.3). All live in group 0 at the
+//! numbers declared in `shaders/common.wgsl`; each pass's pipeline layout lists exactly the slots the
+//! pass uses (`passes.rs`), so no entry point exceeds the storage-buffer limit though the whole set is
+//! larger. `tests/shader_validation.rs` checks every entry point's naga-reflected bindings against the
+//! pass table.
+
+/// One resource slot, `binding` = its number in common.wgsl.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Slot {
+    Params,
+    Step,
+    Objects,
+    LiquidPos,
+    LiquidVel,
+    LiquidVelAdv,
+    LiquidAcc,
+    LiquidAcc0,
+    LiquidDens,
+    SolidPos,
+    SolidVel,
+    SolidVelAdv,
+    SolidAcc,
+    SolidAcc0,
+    SolidDisp,
+    SolidDens,
+    SolidDrho,
+    SolidFlags,
+    SolidDefGrad,
+    SolidStress,
+    BondTable,
+    BondCount,
+    BoundaryPos,
+    BoundaryVel,
+    BoundaryPos0,
+    LiquidOrder,
+    LiquidCellStart,
+    SolidOrder,
+    SolidCellStart,
+    BoundaryOrder,
+    BoundaryCellStart,
+    /// Grid passes: the set being binned (bound per set).
+    GridSet,
+    GridPos,
+    GridOrder,
+    GridCellStart,
+    GridCellOf,
+    GridCursor,
+}
+
+impl Slot {
+    /// Binding number in group 0 (common.wgsl).
+    pub const fn binding(self) -> u32 {
+        self as u32
+    }
+
+    /// `perfuse.<name>` label and WGSL variable name.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Slot::Params => "params",
+            Slot::Step => "step",
+            Slot::Objects => "objects",
+            Slot::LiquidPos => "liquid_pos",
+            Slot::LiquidVel => "liquid_vel",
+            Slot::LiquidVelAdv => "liquid_vel_adv",
+            Slot::LiquidAcc => "liquid_acc",
+            Slot::LiquidAcc0 => "liquid_acc0",
+            Slot::LiquidDens => "liquid_dens",
+            Slot::SolidPos => "solid_pos",
+            Slot::SolidVel => "solid_vel",
+            Slot::SolidVelAdv => "solid_vel_adv",
+            Slot::SolidAcc => "solid_acc",
+            Slot::SolidAcc0 => "solid_acc0",
+            Slot::SolidDisp => "solid_disp",
+            Slot::SolidDens => "solid_dens",
+            Slot::SolidDrho => "solid_drho",
+            Slot::SolidFlags => "solid_flags",
+            Slot::SolidDefGrad => "solid_f",
+            Slot::SolidStress => "solid_tau_art",
+            Slot::BondTable => "bond_table",
+            Slot::BondCount => "bond_count",
+            Slot::BoundaryPos => "boundary_pos",
+            Slot::BoundaryVel => "boundary_vel",
+            Slot::BoundaryPos0 => "boundary_pos0",
+            Slot::LiquidOrder => "liquid_order",
+            Slot::LiquidCellStart => "liquid_cell_start",
+            Slot::SolidOrder => "solid_order",
+            Slot::SolidCellStart => "solid_cell_start",
+            Slot::BoundaryOrder => "boundary_order",
+            Slot::BoundaryCellStart => "boundary_cell_start",
+            Slot::GridSet => "grid_set",
+            Slot::GridPos => "grid_pos",
+            Slot::GridOrder => "grid_order",
+            Slot::GridCellStart => "grid_cell_start",
+            Slot::GridCellOf => "grid_cell_of",
+            Slot::GridCursor => "grid_cursor",
+        }
+    }
+
+    pub const fn is_uniform(self) -> bool {
+        matches!(self, Slot::Params | Slot::GridSet)
+    }
+
+    /// Layout entry: uniform or read-write storage (common.wgsl declares every storage buffer
+    /// `read_write`), visible to compute.
+    pub fn layout_entry(self) -> wgpu::BindGroupLayoutEntry {
+        let ty = if self.is_uniform() {
+            wgpu::BufferBindingType::Uniform
+        } else {
+            wgpu::BufferBindingType::Storage { read_only: false }
+        };
+        wgpu::BindGroupLayoutEntry {
+            binding: self.binding(),
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        }
+    }
+}
+
+/// The bind group layout of a pass using `slots`.
+pub fn create_layout(device: &wgpu::Device, label: &str, slots: &[Slot]) -> wgpu::BindGroupLayout {
+    let entries: Vec<wgpu::BindGroupLayoutEntry> = slots.iter().map(|s| s.layout_entry()).collect();
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn binding_numbers_follow_declaration_order() {
+        assert_eq!(Slot::Params.binding(), 0);
+        assert_eq!(Slot::LiquidDens.binding(), 8);
+        assert_eq!(Slot::BondCount.binding(), 21);
+        assert_eq!(Slot::BoundaryCellStart.binding(), 30);
+        assert_eq!(Slot::GridCursor.binding(), 36);
+    }
+}

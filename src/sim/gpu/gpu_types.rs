@@ -1,0 +1,304 @@
+//! Host↔GPU structs, `#[repr(C)]` + `Pod`, each mirroring the WGSL struct of the same name in
+//! `shaders/common.wgsl` (must be kept in sync; `tests/shader_validation.rs` compares every size and
+//! member offset in [`LAYOUTS`] with naga's layout of the WGSL struct). No `vec3` in storage arrays:
+//! vectors travel as `[f32; 4]` (STYLE §5.4).
+
+use super::super::params::Params;
+use crate::sim::kernels::{Dim, Kernel};
+use bytemuck::{Pod, Zeroable};
+use std::mem::{offset_of, size_of};
+
+/// `KernelConsts` (common.wgsl): one kernel's constants (sim::kernels::Kernel, §2.2.1).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct KernelConsts {
+    pub h: f32,
+    pub r: f32,
+    pub alpha_c: f32,
+    pub alpha_6: f32,
+    pub alpha_s: f32,
+    pub c_v: f32,
+    pub _pad0: f32,
+    pub _pad1: f32,
+}
+
+impl From<&Kernel> for KernelConsts {
+    fn from(k: &Kernel) -> Self {
+        KernelConsts {
+            h: k.h,
+            r: k.r,
+            alpha_c: k.alpha_c,
+            alpha_6: k.alpha_6,
+            alpha_s: k.alpha_s,
+            c_v: k.c_v,
+            _pad0: 0.0,
+            _pad1: 0.0,
+        }
+    }
+}
+
+/// `SimParams` (common.wgsl): the uniform block every pass reads (from [`Params`] plus the
+/// command-controlled damping and gravity).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct SimParams {
+    pub k_liquid: KernelConsts,
+    pub k_solid: KernelConsts,
+    pub k_cross: KernelConsts,
+    pub grid_min: [f32; 4],
+    pub grid_cell: [f32; 4],
+    pub grid_n: [u32; 4],
+    pub period: [f32; 4],
+    pub domain_min: [f32; 4],
+    pub domain_max: [f32; 4],
+    pub gravity: [f32; 4],
+    pub counts: [u32; 4],
+    pub switches: [u32; 4],
+    pub rho0_l: f32,
+    pub rho0_s: f32,
+    pub eta: f32,
+    pub k_l: f32,
+    pub c1: f32,
+    pub k_s: f32,
+    pub k_sat: f32,
+    pub n_sat: f32,
+    pub c10: f32,
+    pub c01: f32,
+    pub kbar: f32,
+    pub c_l: f32,
+    pub c_s: f32,
+    pub av_alpha: f32,
+    pub av_beta: f32,
+    pub av_gamma: f32,
+    pub as_eps: f32,
+    pub as_exp: i32,
+    pub xsph_s: f32,
+    pub xsph_l: f32,
+    pub kappa_v: f32,
+    pub wc_dx: f32,
+    pub rho_ref_l: f32,
+    pub rho_ref_s: f32,
+    pub cfl_factor: f32,
+    pub cfl_viscous: f32,
+    pub cfl_sound: f32,
+    pub cfl_force: f32,
+    pub cfl_friction: f32,
+    pub dt_min: f32,
+    pub dt_max: f32,
+    pub fixed_dt: f32,
+    pub h_min: f32,
+    pub c_max: f32,
+    pub max_speed: f32,
+    pub damping: f32,
+    pub has_liquid: u32,
+    pub has_solid: u32,
+    pub kappa_s: f32,
+    pub _pad0: u32,
+}
+
+/// Set counts of a scene, as the uniform block carries them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counts {
+    pub liquid: u32,
+    pub solid: u32,
+    pub boundary: u32,
+    pub bond_capacity: u32,
+    pub objects: u32,
+}
+
+impl SimParams {
+    /// The uniform block for `p`; `gravity`, `damping`, `gravity_liquid` are the command-set values.
+    pub fn new(p: &Params, c: Counts, gravity: glam::Vec3, damping: f32, gravity_liquid: bool) -> SimParams {
+        let v4 = |v: glam::Vec3| [v.x, v.y, v.z, 0.0];
+        let per = p.periodic_len();
+        SimParams {
+            k_liquid: (&p.k_liquid).into(),
+            k_solid: (&p.k_solid).into(),
+            k_cross: (&p.k_cross).into(),
+            grid_min: v4(p.grid.min),
+            grid_cell: [p.grid.cell[0], p.grid.cell[1], p.grid.cell[2], 0.0],
+            grid_n: [p.grid.n[0], p.grid.n[1], p.grid.n[2], p.grid.cell_count() as u32],
+            period: v4(per),
+            domain_min: v4(p.domain_min),
+            domain_max: v4(p.domain_max),
+            gravity: [gravity.x, gravity.y, gravity.z, if gravity_liquid { 1.0 } else { 0.0 }],
+            counts: [c.liquid, c.solid, c.boundary, c.bond_capacity],
+            switches: [u32::from(p.dim == Dim::Three), u32::from(p.av_liquid), u32::from(p.liquid_tension), c.objects],
+            rho0_l: p.rho0_l,
+            rho0_s: p.rho0_s,
+            eta: p.eta,
+            k_l: p.k_l,
+            c1: p.c1,
+            k_s: p.k_s,
+            k_sat: p.k_sat,
+            n_sat: p.n_sat,
+            c10: p.c10,
+            c01: p.c01,
+            kbar: p.kbar,
+            c_l: p.c_l,
+            c_s: p.c_s,
+            av_alpha: p.av_alpha,
+            av_beta: p.av_beta,
+            av_gamma: p.av_gamma,
+            as_eps: p.as_eps,
+            as_exp: p.as_exp,
+            xsph_s: p.xsph_s,
+            xsph_l: p.xsph_l,
+            kappa_v: p.kappa_v,
+            wc_dx: p.wc_dx,
+            rho_ref_l: p.rho_ref_l,
+            rho_ref_s: p.rho_ref_s,
+            cfl_factor: p.cfl_factor,
+            cfl_viscous: p.cfl_viscous,
+            cfl_sound: p.cfl_sound,
+            cfl_force: p.cfl_force,
+            cfl_friction: p.cfl_friction,
+            dt_min: p.dt_min,
+            dt_max: p.dt_max,
+            fixed_dt: p.fixed_dt.unwrap_or(-1.0),
+            h_min: p.h_min(),
+            c_max: p.c_max(),
+            max_speed: p.max_speed,
+            damping,
+            has_liquid: u32::from(p.has_liquid),
+            has_solid: u32::from(p.has_solid),
+            kappa_s: p.kappa_s,
+            _pad0: 0,
+        }
+    }
+}
+
+/// Bits of `StepState::status`, mirrored by `STATUS_*` in common.wgsl.
+pub mod status {
+    pub const NONFINITE_LIQUID: u32 = 1;
+    pub const NONFINITE_SOLID: u32 = 2;
+    pub const DT_COLLAPSED: u32 = 4;
+}
+
+/// `StepState` (common.wgsl): GPU-resident Δt, its limiting criterion and the step status.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct StepState {
+    pub dt: f32,
+    pub limit: u32,
+    pub status: u32,
+    pub broken_ends: u32,
+    pub a_max_bits: u32,
+    pub rho_min_bits: u32,
+    pub fric_max_bits: u32,
+    pub bad_liquid: u32,
+    pub bad_solid: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+}
+
+/// `ObjectGpu` (common.wgsl): one boundary object's current pose, velocity and pressure mode.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct ObjectGpu {
+    pub geom_a: [f32; 4],
+    pub geom_b: [f32; 4],
+    pub disp: [f32; 4],
+    pub vel: [f32; 4],
+    pub density: f32,
+    pub pressure: f32,
+    pub kind: u32,
+    pub _pad: u32,
+}
+
+/// `Mat3Gpu` (common.wgsl): glam's column-major `Mat3`, one `vec4` per column.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct Mat3Gpu {
+    pub c0: [f32; 4],
+    pub c1: [f32; 4],
+    pub c2: [f32; 4],
+}
+
+impl From<glam::Mat3> for Mat3Gpu {
+    fn from(m: glam::Mat3) -> Self {
+        let c = |v: glam::Vec3| [v.x, v.y, v.z, 0.0];
+        Mat3Gpu { c0: c(m.x_axis), c1: c(m.y_axis), c2: c(m.z_axis) }
+    }
+}
+
+impl From<Mat3Gpu> for glam::Mat3 {
+    fn from(m: Mat3Gpu) -> Self {
+        let c = |v: [f32; 4]| glam::Vec3::new(v[0], v[1], v[2]);
+        glam::Mat3::from_cols(c(m.c0), c(m.c1), c(m.c2))
+    }
+}
+
+/// `StressGpu` (common.wgsl): τ and the artificial stress R (2.59).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct StressGpu {
+    pub tau: Mat3Gpu,
+    pub art: Mat3Gpu,
+}
+
+/// `GridSet` (common.wgsl): the set a grid pass instance bins.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GridSet {
+    pub n: u32,
+    pub cells: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+}
+
+const _: () = assert!(size_of::<KernelConsts>() == 32);
+const _: () = assert!(size_of::<SimParams>() == 400);
+const _: () = assert!(size_of::<StepState>() == 48);
+const _: () = assert!(size_of::<ObjectGpu>() == 80);
+const _: () = assert!(size_of::<Mat3Gpu>() == 48);
+const _: () = assert!(size_of::<StressGpu>() == 96);
+const _: () = assert!(size_of::<GridSet>() == 16);
+
+/// One struct's layout: (WGSL struct name, Rust size, [(member, Rust offset)]).
+pub type StructLayout = (&'static str, usize, &'static [(&'static str, usize)]);
+
+/// Layouts of every host↔WGSL struct, for the layout test.
+pub const LAYOUTS: &[StructLayout] = &[
+    (
+        "KernelConsts",
+        size_of::<KernelConsts>(),
+        &[("h", offset_of!(KernelConsts, h)), ("c_v", offset_of!(KernelConsts, c_v))],
+    ),
+    (
+        "SimParams",
+        size_of::<SimParams>(),
+        &[
+            ("k_cross", offset_of!(SimParams, k_cross)),
+            ("grid_min", offset_of!(SimParams, grid_min)),
+            ("switches", offset_of!(SimParams, switches)),
+            ("rho0_l", offset_of!(SimParams, rho0_l)),
+            ("as_exp", offset_of!(SimParams, as_exp)),
+            ("fixed_dt", offset_of!(SimParams, fixed_dt)),
+            ("damping", offset_of!(SimParams, damping)),
+            ("kappa_s", offset_of!(SimParams, kappa_s)),
+        ],
+    ),
+    (
+        "StepState",
+        size_of::<StepState>(),
+        &[
+            ("dt", offset_of!(StepState, dt)),
+            ("broken_ends", offset_of!(StepState, broken_ends)),
+            ("bad_solid", offset_of!(StepState, bad_solid)),
+        ],
+    ),
+    (
+        "ObjectGpu",
+        size_of::<ObjectGpu>(),
+        &[
+            ("vel", offset_of!(ObjectGpu, vel)),
+            ("density", offset_of!(ObjectGpu, density)),
+            ("kind", offset_of!(ObjectGpu, kind)),
+        ],
+    ),
+    ("Mat3Gpu", size_of::<Mat3Gpu>(), &[("c1", offset_of!(Mat3Gpu, c1)), ("c2", offset_of!(Mat3Gpu, c2))]),
+    ("StressGpu", size_of::<StressGpu>(), &[("art", offset_of!(StressGpu, art))]),
+    ("GridSet", size_of::<GridSet>(), &[("cells", offset_of!(GridSet, cells))]),
+];

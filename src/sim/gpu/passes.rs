@@ -1,0 +1,329 @@
+//! The ordered pass list of one step (STYLE §5.2, SPEC §5.2): entry point, WGSL family, workgroup size,
+//! the slots it binds and its dispatch rule. The GPU back-end encodes exactly these lists; the CPU
+//! solver (`sim::cpu`, `CpuSolver::step_inner`) calls the twins of the same names in the same order:
+//! evaluation 0 (with XSPH) → Δt → predictor, F update, advance → boundaries and grids on xⁿ⁺¹ →
+//! evaluation 1 → corrector → fracture → divergence check.
+
+use super::bindings::Slot;
+use Slot::*;
+
+/// Workgroup size of every family's particle passes (`@workgroup_size(64)` in the WGSL).
+pub const WORKGROUP: u32 = 64;
+/// `grid_scan` runs as one workgroup of this size.
+pub const SCAN_WORKGROUP: u32 = 256;
+
+/// How many invocations a pass needs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Dispatch {
+    Liquid,
+    Solid,
+    Boundary,
+    /// Particles of the grid instance's set.
+    GridParticles,
+    /// Cells of the grid (+1 for the cursor array's sentinel).
+    GridCells,
+    GridCellsPlusOne,
+    /// One workgroup.
+    One,
+}
+
+/// One entry point and what it needs.
+#[derive(Clone, Copy, Debug)]
+pub struct PassSpec {
+    pub entry: &'static str,
+    pub family: &'static str,
+    pub workgroup_size: u32,
+    pub slots: &'static [Slot],
+    pub dispatch: Dispatch,
+}
+
+const fn pass(entry: &'static str, family: &'static str, slots: &'static [Slot], dispatch: Dispatch) -> PassSpec {
+    PassSpec { entry, family, workgroup_size: WORKGROUP, slots, dispatch }
+}
+
+const GRID_SLOTS: &[Slot] = &[Params, GridSet, GridPos, GridOrder, GridCellStart, GridCellOf, GridCursor];
+const NBR_ALL: [Slot; 6] = [LiquidOrder, LiquidCellStart, SolidOrder, SolidCellStart, BoundaryOrder, BoundaryCellStart];
+
+pub const GRID_CLEAR: PassSpec = pass("grid_clear", "grid", GRID_SLOTS, Dispatch::GridCellsPlusOne);
+pub const GRID_COUNT: PassSpec = pass("grid_count", "grid", GRID_SLOTS, Dispatch::GridParticles);
+pub const GRID_SCAN: PassSpec = PassSpec {
+    entry: "grid_scan",
+    family: "grid",
+    workgroup_size: SCAN_WORKGROUP,
+    slots: GRID_SLOTS,
+    dispatch: Dispatch::One,
+};
+pub const GRID_SCATTER: PassSpec = pass("grid_scatter", "grid", GRID_SLOTS, Dispatch::GridParticles);
+pub const GRID_SORT_CELLS: PassSpec = pass("grid_sort_cells", "grid", GRID_SLOTS, Dispatch::GridCells);
+
+pub const DENSITY_LIQUID: PassSpec = pass(
+    "density_liquid",
+    "density",
+    &[
+        Params,
+        LiquidPos,
+        LiquidDens,
+        SolidPos,
+        SolidVel,
+        SolidFlags,
+        BoundaryPos,
+        NBR_ALL[0],
+        NBR_ALL[1],
+        NBR_ALL[2],
+        NBR_ALL[3],
+        NBR_ALL[4],
+        NBR_ALL[5],
+    ],
+    Dispatch::Liquid,
+);
+pub const DENSITY_SOLID: PassSpec = pass(
+    "density_solid",
+    "density",
+    &[
+        Params,
+        LiquidPos,
+        SolidPos,
+        SolidVel,
+        SolidDens,
+        SolidDrho,
+        SolidFlags,
+        BoundaryPos,
+        BoundaryVel,
+        NBR_ALL[0],
+        NBR_ALL[1],
+        NBR_ALL[2],
+        NBR_ALL[3],
+        NBR_ALL[4],
+        NBR_ALL[5],
+    ],
+    Dispatch::Solid,
+);
+pub const SOLID_STRESS: PassSpec =
+    pass("solid_stress", "solid", &[Params, SolidDefGrad, SolidDens, SolidStress], Dispatch::Solid);
+pub const SOLID_DEF_GRAD: PassSpec = pass(
+    "solid_def_grad",
+    "solid",
+    &[Params, SolidPos, SolidDisp, SolidDens, SolidDefGrad, BondTable, BondCount],
+    Dispatch::Solid,
+);
+pub const FORCES_LIQUID: PassSpec = pass(
+    "forces_liquid",
+    "forces",
+    &[
+        Params,
+        Objects,
+        LiquidPos,
+        LiquidVel,
+        LiquidDens,
+        LiquidAcc,
+        SolidPos,
+        SolidVel,
+        SolidDens,
+        SolidFlags,
+        BoundaryPos,
+        BoundaryVel,
+        BoundaryPos0,
+        NBR_ALL[0],
+        NBR_ALL[1],
+        NBR_ALL[2],
+        NBR_ALL[3],
+        NBR_ALL[4],
+        NBR_ALL[5],
+    ],
+    Dispatch::Liquid,
+);
+pub const FORCES_SOLID: PassSpec = pass(
+    "forces_solid",
+    "forces",
+    &[
+        Params,
+        Objects,
+        LiquidPos,
+        LiquidVel,
+        LiquidDens,
+        SolidPos,
+        SolidVel,
+        SolidDens,
+        SolidFlags,
+        SolidStress,
+        SolidAcc,
+        BondTable,
+        BondCount,
+        BoundaryPos,
+        BoundaryVel,
+        BoundaryPos0,
+        NBR_ALL[0],
+        NBR_ALL[1],
+        NBR_ALL[2],
+        NBR_ALL[3],
+        NBR_ALL[4],
+        NBR_ALL[5],
+    ],
+    Dispatch::Solid,
+);
+pub const FORCES_XSPH_LIQUID: PassSpec = pass(
+    "forces_xsph_liquid",
+    "forces",
+    &[Params, LiquidPos, LiquidVel, LiquidDens, LiquidVelAdv, LiquidOrder, LiquidCellStart],
+    Dispatch::Liquid,
+);
+pub const FORCES_XSPH_SOLID: PassSpec = pass(
+    "forces_xsph_solid",
+    "forces",
+    &[Params, SolidPos, SolidVel, SolidDens, SolidFlags, SolidVelAdv, SolidOrder, SolidCellStart],
+    Dispatch::Solid,
+);
+pub const DT_CLEAR: PassSpec =
+    PassSpec { entry: "dt_clear", family: "dt", workgroup_size: 1, slots: &[Params, Step], dispatch: Dispatch::One };
+pub const DT_REDUCE_LIQUID: PassSpec =
+    pass("dt_reduce_liquid", "dt", &[Params, Step, LiquidAcc, LiquidDens], Dispatch::Liquid);
+pub const DT_REDUCE_SOLID: PassSpec =
+    pass("dt_reduce_solid", "dt", &[Params, Step, SolidAcc, SolidDens, SolidFlags], Dispatch::Solid);
+pub const DT_FINALIZE: PassSpec =
+    PassSpec { entry: "dt_finalize", family: "dt", workgroup_size: 1, slots: &[Params, Step], dispatch: Dispatch::One };
+pub const INTEGRATE_PREDICT_LIQUID: PassSpec =
+    pass("integrate_predict_liquid", "integrate", &[Params, Step, LiquidVel, LiquidAcc, LiquidAcc0], Dispatch::Liquid);
+pub const INTEGRATE_PREDICT_SOLID: PassSpec = pass(
+    "integrate_predict_solid",
+    "integrate",
+    &[Params, Step, SolidVel, SolidVelAdv, SolidAcc, SolidAcc0, SolidDrho, SolidDisp, SolidFlags],
+    Dispatch::Solid,
+);
+pub const INTEGRATE_ADVANCE_LIQUID: PassSpec = pass(
+    "integrate_advance_liquid",
+    "integrate",
+    &[Params, Step, LiquidPos, LiquidVelAdv, LiquidAcc0],
+    Dispatch::Liquid,
+);
+pub const INTEGRATE_ADVANCE_SOLID: PassSpec = pass(
+    "integrate_advance_solid",
+    "integrate",
+    &[Params, Step, SolidPos, SolidDisp, SolidDens, SolidDrho, SolidFlags],
+    Dispatch::Solid,
+);
+pub const INTEGRATE_BOUNDARY: PassSpec = pass(
+    "integrate_boundary",
+    "integrate",
+    &[Params, Objects, BoundaryPos, BoundaryVel, BoundaryPos0],
+    Dispatch::Boundary,
+);
+pub const INTEGRATE_CORRECT_LIQUID: PassSpec =
+    pass("integrate_correct_liquid", "integrate", &[Params, Step, LiquidVel, LiquidAcc, LiquidAcc0], Dispatch::Liquid);
+pub const INTEGRATE_CORRECT_SOLID: PassSpec = pass(
+    "integrate_correct_solid",
+    "integrate",
+    &[Params, Step, SolidVel, SolidAcc, SolidAcc0, SolidDrho, SolidDens, SolidFlags],
+    Dispatch::Solid,
+);
+pub const FRACTURE_APPLY: PassSpec =
+    pass("fracture_apply", "fracture", &[Params, Step, SolidPos, BondTable, BondCount], Dispatch::Solid);
+pub const INTEGRATE_CHECK_LIQUID: PassSpec =
+    pass("integrate_check_liquid", "integrate", &[Params, Step, LiquidPos, LiquidVel, LiquidDens], Dispatch::Liquid);
+pub const INTEGRATE_CHECK_SOLID: PassSpec =
+    pass("integrate_check_solid", "integrate", &[Params, Step, SolidPos, SolidVel, SolidDens], Dispatch::Solid);
+
+/// Every entry point (pipelines are created for each; tests check each against naga).
+pub const ALL_PASSES: &[PassSpec] = &[
+    GRID_CLEAR,
+    GRID_COUNT,
+    GRID_SCAN,
+    GRID_SCATTER,
+    GRID_SORT_CELLS,
+    DENSITY_LIQUID,
+    DENSITY_SOLID,
+    SOLID_STRESS,
+    SOLID_DEF_GRAD,
+    FORCES_LIQUID,
+    FORCES_SOLID,
+    FORCES_XSPH_LIQUID,
+    FORCES_XSPH_SOLID,
+    DT_CLEAR,
+    DT_REDUCE_LIQUID,
+    DT_REDUCE_SOLID,
+    DT_FINALIZE,
+    INTEGRATE_PREDICT_LIQUID,
+    INTEGRATE_PREDICT_SOLID,
+    INTEGRATE_ADVANCE_LIQUID,
+    INTEGRATE_ADVANCE_SOLID,
+    INTEGRATE_BOUNDARY,
+    INTEGRATE_CORRECT_LIQUID,
+    INTEGRATE_CORRECT_SOLID,
+    FRACTURE_APPLY,
+    INTEGRATE_CHECK_LIQUID,
+    INTEGRATE_CHECK_SOLID,
+];
+
+/// A set binned by the grid passes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GridOf {
+    Liquid,
+    Solid,
+    Boundary,
+}
+
+/// One element of an ordered pass list.
+#[derive(Clone, Copy, Debug)]
+pub enum Stage {
+    Pass(PassSpec),
+    /// grid_clear · grid_count · grid_scan · grid_scatter · grid_sort_cells for one set.
+    Grid(GridOf),
+}
+
+/// The grid build of one set (twin: `grid::grid_build`).
+pub const GRID_BUILD: &[PassSpec] = &[GRID_CLEAR, GRID_COUNT, GRID_SCAN, GRID_SCATTER, GRID_SORT_CELLS];
+
+/// Boundaries to the current pose and the three cell lists (`move_boundaries` + `build_grids`).
+pub const PLACE_AND_BIN: &[Stage] = &[
+    Stage::Pass(INTEGRATE_BOUNDARY),
+    Stage::Grid(GridOf::Liquid),
+    Stage::Grid(GridOf::Solid),
+    Stage::Grid(GridOf::Boundary),
+];
+
+/// One force evaluation (`CpuSolver::evaluate`), without XSPH.
+pub const EVALUATE: &[Stage] = &[
+    Stage::Pass(DENSITY_LIQUID),
+    Stage::Pass(DENSITY_SOLID),
+    Stage::Pass(SOLID_STRESS),
+    Stage::Pass(FORCES_LIQUID),
+    Stage::Pass(FORCES_SOLID),
+];
+
+/// First half of a step: evaluation 0 with XSPH, then Δt (2.70) into `step.dt`.
+pub const STEP_FIRST: &[Stage] = &[
+    Stage::Pass(DT_CLEAR),
+    Stage::Pass(DENSITY_LIQUID),
+    Stage::Pass(DENSITY_SOLID),
+    Stage::Pass(SOLID_STRESS),
+    Stage::Pass(FORCES_LIQUID),
+    Stage::Pass(FORCES_SOLID),
+    Stage::Pass(FORCES_XSPH_LIQUID),
+    Stage::Pass(FORCES_XSPH_SOLID),
+    Stage::Pass(DT_REDUCE_LIQUID),
+    Stage::Pass(DT_REDUCE_SOLID),
+    Stage::Pass(DT_FINALIZE),
+];
+
+/// Second half: predictor, F update, advance, boundaries and grids at tⁿ⁺¹, evaluation 1, corrector,
+/// fracture, divergence check.
+pub const STEP_SECOND: &[Stage] = &[
+    Stage::Pass(INTEGRATE_PREDICT_LIQUID),
+    Stage::Pass(INTEGRATE_PREDICT_SOLID),
+    Stage::Pass(SOLID_DEF_GRAD),
+    Stage::Pass(INTEGRATE_ADVANCE_LIQUID),
+    Stage::Pass(INTEGRATE_ADVANCE_SOLID),
+    Stage::Pass(INTEGRATE_BOUNDARY),
+    Stage::Grid(GridOf::Liquid),
+    Stage::Grid(GridOf::Solid),
+    Stage::Grid(GridOf::Boundary),
+    Stage::Pass(DENSITY_LIQUID),
+    Stage::Pass(DENSITY_SOLID),
+    Stage::Pass(SOLID_STRESS),
+    Stage::Pass(FORCES_LIQUID),
+    Stage::Pass(FORCES_SOLID),
+    Stage::Pass(INTEGRATE_CORRECT_LIQUID),
+    Stage::Pass(INTEGRATE_CORRECT_SOLID),
+    Stage::Pass(FRACTURE_APPLY),
+    Stage::Pass(INTEGRATE_CHECK_LIQUID),
+    Stage::Pass(INTEGRATE_CHECK_SOLID),
+];

@@ -1,0 +1,29 @@
+//! Small scenes for the differential tests: seconds on lavapipe.
+
+use perfuse::scenario::Scenario;
+
+/// A 3-D perfused block (8×8×5 solid + 8×8×5 liquid at Δx = 0.5 mm) on a wall, its bottom layer
+/// clamped, pressed by a descending spherical tool (640 particles, 432 + ~17 boundary particles).
+pub const PERFUSED_BLOCK_3D: &str = r#"
+Scenario(
+    name: "gpu_test_block",
+    dimensions: 3,
+    domain: Domain(min: (0.0, 0.0, 0.0), max: (0.006, 0.006, 0.006)),
+    gravity: (0.0, 0.0, -9.81),
+    liquid: Some(Liquid(density: 1000.0, viscosity: 0.01, sound_speed: Some(2.0))),
+    solid: Some(Solid(density: 1000.0, c10: 1000.0, c01: 100.0, k_s: 10000.0, n_sat: 0.5, k_sat: 1000.0, friction: 10000.0)),
+    numerics: Numerics(dx_liquid: Some(5.0e-4), dx_solid: Some(5.0e-4), h_over_dx: 1.3),
+    particles: [ PerfusedBlock(min: (0.001, 0.001, 0.0015), max: (0.005, 0.005, 0.004), solid_fraction: 0.5, liquid_fraction: 0.5) ],
+    boundaries: [
+        Boundary(name: "floor", shape: Box(min: (0.0, 0.0, 0.0), max: (0.006, 0.006, 0.0015))),
+        Boundary(name: "tool", shape: Sphere(centre: (0.003, 0.003, 0.005), radius: 0.0008),
+                 motion: Translate(velocity: (0.0, 0.0, -0.1))),
+    ],
+    fixed_regions: [ Box(min: (-1.0, -1.0, -1.0), max: (1.0, 1.0, 0.002)) ],
+    duration: 0.01,
+)
+"#;
+
+pub fn perfused_block() -> Scenario {
+    Scenario::from_str_named(PERFUSED_BLOCK_3D, "gpu_test_block.ron").expect("test scene is valid")
+}

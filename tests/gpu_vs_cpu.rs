@@ -1,0 +1,307 @@
+//! Differential tests: the GPU back-end against its CPU twin on a small 3-D perfused block with a
+//! wall and a moving tool (STYLE §5.5). Per pass: identical inputs (the GPU solver is loaded with the
+//! CPU solver's state after a few steps), one GPU pass, readback, comparison with the twin under a
+//! stated tolerance. Per step: both back-ends stepped N times from the same initial state.
+//! Figures are printed (`--nocapture`) for the report.
+
+mod common;
+
+use common::gpu::gpu_test;
+use common::scenes::perfused_block;
+use glam::{Mat3, Vec3};
+use perfuse::scenario::generate;
+use perfuse::sim::cpu::grid::Neighbours;
+use perfuse::sim::cpu::{CpuSolver, Nbrs, density, forces, solid};
+use perfuse::sim::gpu::bindings::Slot;
+use perfuse::sim::gpu::passes::{self, Stage};
+use perfuse::sim::gpu::{GpuContext, GpuSolver};
+use perfuse::sim::params::Params;
+
+fn cpu_solver() -> CpuSolver {
+    let sc = perfused_block();
+    let g = generate(&sc);
+    CpuSolver::new(Params::new(&sc, &g), &g).expect("CPU solver")
+}
+
+fn cpu_after(steps: usize) -> CpuSolver {
+    let mut cpu = cpu_solver();
+    for _ in 0..steps {
+        cpu.step().expect("CPU step");
+    }
+    cpu
+}
+
+fn xyz(v: &[f32; 4]) -> Vec3 {
+    Vec3::new(v[0], v[1], v[2])
+}
+
+fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+}
+
+fn max_abs(a: &[f32]) -> f32 {
+    a.iter().map(|x| x.abs()).fold(0.0, f32::max)
+}
+
+fn max_vec_diff(a: &[Vec3], b: &[Vec3]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).map(|(x, y)| (*x - *y).length()).fold(0.0, f32::max)
+}
+
+fn max_len(a: &[Vec3]) -> f32 {
+    a.iter().map(|x| x.length()).fold(0.0, f32::max)
+}
+
+fn nbrs(cpu: &CpuSolver) -> Nbrs<'_> {
+    let p = &cpu.params;
+    let mk = |list, pos| Neighbours { grid: &p.grid, list, pos, period: p.periodic_len(), three_d: p.dim.n() == 3 };
+    Nbrs {
+        liquid: mk(&cpu.grids.liquid, &cpu.st.liquid.x[..]),
+        solid: mk(&cpu.grids.solid, &cpu.st.solid.x[..]),
+        boundary: mk(&cpu.grids.boundary, &cpu.st.boundary.x[..]),
+    }
+}
+
+/// The CPU evaluation of `CpuSolver::evaluate` (private there), pass by pass, on `cpu`'s state.
+fn cpu_evaluate(cpu: &mut CpuSolver) {
+    let ((rho_l, n_s_l, p_l), (drho_s, n_l_s, n_s_s, p_s)) = {
+        let nb = nbrs(cpu);
+        let p = &cpu.params;
+        (
+            density::density_liquid(p, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb),
+            density::density_solid(p, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb),
+        )
+    };
+    let l = &mut cpu.st.liquid;
+    l.n_l = rho_l.iter().map(|r| r / cpu.params.rho0_l).collect();
+    l.rho = rho_l;
+    l.n_s = n_s_l;
+    l.p = p_l;
+    let s = &mut cpu.st.solid;
+    s.drho = drho_s;
+    s.n_l = n_l_s;
+    s.n_s = n_s_s;
+    s.p = p_s;
+    solid::solid_stress(&cpu.params, &mut cpu.st.solid);
+    let (a_l, a_s, vx_l, vx_s) = {
+        let nb = nbrs(cpu);
+        let ctx = forces::ForceCtx {
+            p: &cpu.params,
+            geoms: &cpu.geoms,
+            gravity: cpu.st.gravity,
+            pressure_modes: &cpu.pressure_modes,
+            gravity_liquid: true,
+        };
+        let a_l = forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb);
+        let a_s = forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb);
+        let vx_l = forces::forces_xsph_liquid(&cpu.params, &cpu.st.liquid, &nb);
+        let vx_s = forces::forces_xsph_solid(&cpu.params, &cpu.st.solid, &nb);
+        (a_l, a_s, vx_l, vx_s)
+    };
+    cpu.st.liquid.a = a_l;
+    cpu.st.solid.a = a_s;
+    cpu.st.liquid.vx = vx_l;
+    cpu.st.solid.vx = vx_s;
+}
+
+fn gpu_from(ctx: GpuContext, cpu: &CpuSolver) -> GpuSolver {
+    match GpuSolver::from_cpu(ctx, cpu) {
+        Ok(g) => g,
+        Err(e) => panic!("GPU solver: {e}"),
+    }
+}
+
+/// grid_count/scan/scatter/sort_cells: integer passes match bit for bit, at t = 0 and after 30 steps.
+#[test]
+fn grid_cell_lists_bit_identical() {
+    gpu_test("grid_cell_lists_bit_identical", |ctx| {
+        for steps in [0, 30] {
+            let cpu = cpu_after(steps);
+            let gpu = gpu_from(ctx.clone(), &cpu);
+            let cells = cpu.params.grid.cell_count() + 1;
+            for (name, list, order, start) in [
+                ("liquid", &cpu.grids.liquid, Slot::LiquidOrder, Slot::LiquidCellStart),
+                ("solid", &cpu.grids.solid, Slot::SolidOrder, Slot::SolidCellStart),
+                ("boundary", &cpu.grids.boundary, Slot::BoundaryOrder, Slot::BoundaryCellStart),
+            ] {
+                let o: Vec<u32> = gpu.read_slot(order, list.order.len()).unwrap();
+                let s: Vec<u32> = gpu.read_slot(start, cells).unwrap();
+                assert_eq!(s, list.cell_start, "{name} cell_start after {steps} steps");
+                assert_eq!(o, list.order, "{name} order after {steps} steps");
+            }
+        }
+    });
+}
+
+/// density_liquid / density_solid (2.46), (2.47), nˢ, nˡ (D-8) and penalty pressures (2.52), (2.53).
+/// Tolerances: ρ and dρ/dt relative 1e-5 of the largest value; n 1e-5 absolute; p 1e-6 of the penalty
+/// stiffness (p = k(nˢ + nˡ − 1 …) cancels to a small difference of O(1) terms, so its absolute
+/// error scales with k·ε_f32, and lavapipe may contract a·b + c into an FMA).
+#[test]
+fn density_passes_match_cpu() {
+    gpu_test("density_passes_match_cpu", |ctx| {
+        let mut cpu = cpu_after(40);
+        let mut gpu = gpu_from(ctx, &cpu);
+        gpu.run_stages(&[Stage::Pass(passes::DENSITY_LIQUID), Stage::Pass(passes::DENSITY_SOLID)]).unwrap();
+        cpu_evaluate(&mut cpu);
+        let (l, s) = (&cpu.st.liquid, &cpu.st.solid);
+        let ld: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidDens, l.x.len()).unwrap();
+        let sd: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidDens, s.x.len()).unwrap();
+        let dr: Vec<[f32; 2]> = gpu.read_slot(Slot::SolidDrho, s.x.len()).unwrap();
+        let col = |v: &[[f32; 4]], k: usize| v.iter().map(|x| x[k]).collect::<Vec<f32>>();
+        let d_rho_l = max_abs_diff(&col(&ld, 0), &l.rho);
+        let d_nl_l = max_abs_diff(&col(&ld, 1), &l.n_l);
+        let d_ns_l = max_abs_diff(&col(&ld, 2), &l.n_s);
+        let d_p_l = max_abs_diff(&col(&ld, 3), &l.p);
+        let d_nl_s = max_abs_diff(&col(&sd, 1), &s.n_l);
+        let d_ns_s = max_abs_diff(&col(&sd, 2), &s.n_s);
+        let d_p_s = max_abs_diff(&col(&sd, 3), &s.p);
+        let gdr: Vec<f32> = dr.iter().map(|x| x[0]).collect();
+        let d_drho = max_abs_diff(&gdr, &s.drho);
+        eprintln!(
+            "density: liquid ρ {d_rho_l:.3e} (max {:.3e}), nˡ {d_nl_l:.3e}, nˢ {d_ns_l:.3e}, p {d_p_l:.3e} (max {:.3e}); \
+             solid nˡ {d_nl_s:.3e}, nˢ {d_ns_s:.3e}, p {d_p_s:.3e} (max {:.3e}), dρ/dt {d_drho:.3e} (max {:.3e})",
+            max_abs(&l.rho),
+            max_abs(&l.p),
+            max_abs(&s.p),
+            max_abs(&s.drho)
+        );
+        assert!(d_rho_l <= 1e-5 * max_abs(&l.rho));
+        assert!(d_nl_l <= 1e-5 && d_ns_l <= 1e-5 && d_nl_s <= 1e-5 && d_ns_s <= 1e-5);
+        let p = &cpu.params;
+        assert!(d_p_l <= 1e-6 * p.k_l.max(1.0));
+        assert!(d_p_s <= 1e-6 * (p.k_s + p.k_sat).max(1.0));
+        assert!(d_drho <= 1e-4 * max_abs(&s.drho).max(1e-6));
+    });
+}
+
+/// solid_stress (τ, R), forces_liquid / forces_solid (2.48), (2.50) and XSPH (2.69) on the same
+/// inputs. Tolerances: τ, R relative 1e-4 of their largest entry; accelerations 1e-4 of max |a|;
+/// XSPH velocities 1e-5 of max |v| (plus 1e-9 m/s).
+#[test]
+fn stress_and_force_passes_match_cpu() {
+    gpu_test("stress_and_force_passes_match_cpu", |ctx| {
+        let mut cpu = cpu_after(40);
+        let mut gpu = gpu_from(ctx, &cpu);
+        gpu.run_stages(passes::EVALUATE).unwrap();
+        gpu.run_stages(&[Stage::Pass(passes::FORCES_XSPH_LIQUID), Stage::Pass(passes::FORCES_XSPH_SOLID)]).unwrap();
+        cpu_evaluate(&mut cpu);
+        let (l, s) = (&cpu.st.liquid, &cpu.st.solid);
+        let st: Vec<perfuse::sim::gpu::gpu_types::StressGpu> = gpu.read_slot(Slot::SolidStress, s.x.len()).unwrap();
+        let mat_diff = |g: &dyn Fn(usize) -> Mat3, c: &[Mat3]| {
+            let mut d = 0.0f32;
+            let mut m = 0.0f32;
+            for i in 0..c.len() {
+                let (a, b) = (g(i).to_cols_array(), c[i].to_cols_array());
+                for k in 0..9 {
+                    d = d.max((a[k] - b[k]).abs());
+                    m = m.max(b[k].abs());
+                }
+            }
+            (d, m)
+        };
+        let (d_tau, m_tau) = mat_diff(&|i| Mat3::from(st[i].tau), &s.tau);
+        let (d_art, m_art) = mat_diff(&|i| Mat3::from(st[i].art), &s.art);
+        let al: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidAcc, l.x.len()).unwrap();
+        let as_: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, s.x.len()).unwrap();
+        let vl: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidVelAdv, l.x.len()).unwrap();
+        let vs: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidVelAdv, s.x.len()).unwrap();
+        let v3 = |v: &[[f32; 4]]| v.iter().map(xyz).collect::<Vec<Vec3>>();
+        let d_al = max_vec_diff(&v3(&al), &l.a);
+        let d_as = max_vec_diff(&v3(&as_), &s.a);
+        let d_vl = max_vec_diff(&v3(&vl), &l.vx);
+        let d_vs = max_vec_diff(&v3(&vs), &s.vx);
+        eprintln!(
+            "stress: τ {d_tau:.3e} (max {m_tau:.3e}), R {d_art:.3e} (max {m_art:.3e}); forces: liquid a {d_al:.3e} (max {:.3e}), \
+             solid a {d_as:.3e} (max {:.3e}); XSPH liquid {d_vl:.3e}, solid {d_vs:.3e} (max |v| {:.3e})",
+            max_len(&l.a),
+            max_len(&s.a),
+            max_len(&s.v)
+        );
+        assert!(m_tau > 0.0, "test state must be stressed");
+        assert!(d_tau <= 1e-4 * m_tau && d_art <= 1e-4 * m_art.max(1e-30));
+        assert!(d_al <= 1e-4 * max_len(&l.a));
+        assert!(d_as <= 1e-4 * max_len(&s.a));
+        let vmax = max_len(&l.v).max(max_len(&s.v));
+        assert!(d_vl <= 1e-5 * vmax + 1e-9 && d_vs <= 1e-5 * vmax + 1e-9);
+    });
+}
+
+/// One whole step from an identical state: F (solid_def_grad, 2.41–2.43), positions, velocities.
+/// Tolerances: F entries 1e-5; positions 1e-6·h; velocities 1e-4 of max |v|.
+#[test]
+fn one_step_matches_cpu() {
+    gpu_test("one_step_matches_cpu", |ctx| {
+        let mut cpu = cpu_after(40);
+        let mut gpu = gpu_from(ctx, &cpu);
+        let ig = gpu.step().unwrap();
+        let ic = cpu.step().unwrap();
+        let (g, c) = (gpu.read_state().unwrap(), cpu.read_state());
+        let mut d_f = 0.0f32;
+        for (a, b) in g.solid_extra.def_grad.iter().zip(&c.solid_extra.def_grad) {
+            for (x, y) in a.to_cols_array().iter().zip(b.to_cols_array()) {
+                d_f = d_f.max((x - y).abs());
+            }
+        }
+        let h = cpu.params.k_liquid.h;
+        let d_x = max_vec_diff(&g.liquid.pos, &c.liquid.pos).max(max_vec_diff(&g.solid.pos, &c.solid.pos));
+        let d_v = max_vec_diff(&g.liquid.vel, &c.liquid.vel).max(max_vec_diff(&g.solid.vel, &c.solid.vel));
+        let vmax = max_len(&c.liquid.vel).max(max_len(&c.solid.vel));
+        eprintln!(
+            "one step: dt gpu {:.6e} cpu {:.6e} ({:?}/{:?}); F {d_f:.3e}; x {d_x:.3e} m ({:.3e} h); v {d_v:.3e} (max {vmax:.3e})",
+            ig.dt,
+            ic.dt,
+            ig.limit,
+            ic.limit,
+            d_x / h
+        );
+        assert_eq!(ig.limit, ic.limit);
+        assert!(((ig.dt - ic.dt) / ic.dt).abs() <= 1e-5);
+        assert!(d_f <= 1e-5);
+        assert!(d_x <= 1e-6 * h);
+        assert!(d_v <= 1e-4 * vmax);
+        assert_eq!(g.solid_extra.bond_lists, c.solid_extra.bond_lists);
+    });
+}
+
+/// The whole step, 500 times from the same initial state: max position difference ≤ 1e-3·h.
+#[test]
+fn whole_step_500_matches_cpu() {
+    gpu_test("whole_step_500_matches_cpu", |ctx| {
+        let mut cpu = cpu_solver();
+        let mut gpu = gpu_from(ctx, &cpu);
+        let n = 500;
+        let t0 = std::time::Instant::now();
+        for _ in 0..n {
+            gpu.step().unwrap();
+        }
+        let gpu_secs = t0.elapsed().as_secs_f64();
+        let t0 = std::time::Instant::now();
+        for _ in 0..n {
+            cpu.step().unwrap();
+        }
+        let cpu_secs = t0.elapsed().as_secs_f64();
+        let (g, c) = (gpu.read_state().unwrap(), cpu.read_state());
+        let h = cpu.params.k_liquid.h;
+        let d_l = max_vec_diff(&g.liquid.pos, &c.liquid.pos);
+        let d_s = max_vec_diff(&g.solid.pos, &c.solid.pos);
+        let d_b = max_vec_diff(&g.boundary.pos, &c.boundary.pos);
+        let disp =
+            c.solid.pos.iter().zip(&cpu_solver().st.solid.x).map(|(a, b)| (*a - *b).length()).fold(0.0, f32::max);
+        eprintln!(
+            "{n} steps (t = {:.4e} s gpu, {:.4e} s cpu): max |Δx| liquid {d_l:.3e} m ({:.3e} h), solid {d_s:.3e} m ({:.3e} h), \
+             boundary {d_b:.3e}; max solid displacement {disp:.3e} m; {} particles; step time gpu {:.2} ms, cpu {:.2} ms",
+            g.t,
+            c.t,
+            d_l / h,
+            d_s / h,
+            c.liquid.len() + c.solid.len(),
+            1e3 * gpu_secs / n as f64,
+            1e3 * cpu_secs / n as f64
+        );
+        assert!((g.t - c.t).abs() <= 1e-6 * c.t);
+        assert!(d_l <= 1e-3 * h && d_s <= 1e-3 * h, "positions diverged");
+        assert_eq!(g.solid_extra.bond_lists, c.solid_extra.bond_lists);
+    });
+}
