@@ -205,13 +205,26 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             }
         }
     }
+    let membrane = match &s.membrane {
+        Some(m) if !g.solid.pos.is_empty() => add_membrane(&mut g, m, d),
+        _ => vec![false; g.solid.pos.len()],
+    };
     g.solid_flags = g
         .solid
         .pos
         .iter()
-        .map(|p| if s.fixed_regions.iter().any(|r| r.contains(*p, s.dimensions)) { SolidFlags::KINEMATIC } else { 0 })
+        .zip(&membrane)
+        .map(|(p, &mem)| {
+            let fixed =
+                if s.fixed_regions.iter().any(|r| r.contains(*p, s.dimensions)) { SolidFlags::KINEMATIC } else { 0 };
+            fixed | if mem { SolidFlags::MEMBRANE } else { 0 }
+        })
         .collect();
-    g.solid_liquid_boundary_mass = vec![0.0; g.solid.pos.len()];
+    // A membrane particle shows the liquid the equivalent mass of its share of a solid lattice site (§4.1).
+    let n_share = s.membrane.as_ref().map(|m| membrane_children(m, d) as f64 + 1.0).unwrap_or(1.0);
+    let m_bl =
+        if g.dx_liquid > 0.0 { g.mass_liquid * (g.dx_solid / g.dx_liquid).powi(d as i32) / n_share } else { 0.0 };
+    g.solid_liquid_boundary_mass = membrane.iter().map(|&mem| if mem { m_bl } else { 0.0 }).collect();
 
     let default_spacing = if g.dx_solid > 0.0 { g.dx_solid } else { g.dx_liquid };
     for (k, b) in s.boundaries.iter().enumerate() {
@@ -233,6 +246,108 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
         });
     }
     g
+}
+
+/// Membrane detection and boundary-resolution enhancement (thesis §3.1.2–3.1.3, SPEC §4.5): marks solid
+/// particles whose neighbourhood centre of mass (radius R_s, self included) is offset by more than δ_mem,
+/// then adds `count` children per membrane particle on its tangent plane, sharing the parent's mass
+/// equally. Returns the membrane flag of every (old and new) solid particle.
+fn add_membrane(g: &mut GeneratedParticles, m: &super::Membrane, d: usize) -> Vec<bool> {
+    use std::collections::HashMap;
+    let radius = 2.0 * g.h_solid;
+    let delta = m.threshold * g.dx_solid;
+    let pos = g.solid.pos.clone();
+    let cell = |p: &V3| -> [i64; 3] {
+        [(p[0] / radius).floor() as i64, (p[1] / radius).floor() as i64, (p[2] / radius).floor() as i64]
+    };
+    let mut bins: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+    for (i, p) in pos.iter().enumerate() {
+        bins.entry(cell(p)).or_default().push(i);
+    }
+    let nz = if d == 3 { 1 } else { 0 };
+    let mut offsets = Vec::new();
+    for (i, p) in pos.iter().enumerate() {
+        let c = cell(p);
+        let (mut sum, mut n) = ([0.0f64; 3], 0usize);
+        for dz in -nz..=nz {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    if let Some(list) = bins.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) {
+                        for &j in list {
+                            let q = pos[j];
+                            let r2: f64 = (0..3).map(|a| (q[a] - p[a]).powi(2)).sum();
+                            if r2 < radius * radius {
+                                for a in 0..3 {
+                                    sum[a] += q[a];
+                                }
+                                n += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let off = [p[0] - sum[0] / n as f64, p[1] - sum[1] / n as f64, p[2] - sum[2] / n as f64];
+        let len = (off[0] * off[0] + off[1] * off[1] + off[2] * off[2]).sqrt();
+        offsets.push((i, off, len));
+    }
+    let mut flags = vec![false; pos.len()];
+    let share = 1.0 / (membrane_children(m, d) as f64 + 1.0);
+    let r_e = m.radius * g.dx_solid;
+    for &(i, off, len) in &offsets {
+        if len <= delta {
+            continue;
+        }
+        flags[i] = true;
+        let n_hat = [off[0] / len, off[1] / len, off[2] / len];
+        let (t1, t2) = tangent_basis(n_hat, d);
+        let (vel, mass) = (g.solid.vel[i], g.solid.mass[i] * share);
+        g.solid.mass[i] = mass;
+        for k in 0..membrane_children(m, d) {
+            let theta = if d == 2 {
+                std::f64::consts::PI * k as f64
+            } else {
+                m.angle + 2.0 * std::f64::consts::PI * k as f64 / m.count as f64
+            };
+            let (c, sn) = if d == 2 { (theta.cos(), 0.0) } else { (theta.cos(), theta.sin()) };
+            let p = pos[i];
+            g.solid.pos.push([
+                p[0] + r_e * (c * t1[0] + sn * t2[0]),
+                p[1] + r_e * (c * t1[1] + sn * t2[1]),
+                p[2] + r_e * (c * t1[2] + sn * t2[2]),
+            ]);
+            g.solid.vel.push(vel);
+            g.solid.mass.push(mass);
+            flags.push(true);
+        }
+    }
+    flags
+}
+
+/// Children per membrane particle: N_e in 3-D; in 2-D the "circle" is the two points x ± r_e t1 (SPEC §4.5).
+fn membrane_children(m: &super::Membrane, d: usize) -> u32 {
+    if d == 2 { m.count.min(2) } else { m.count }
+}
+
+/// Deterministic orthonormal basis of the plane ⟂ n̂: t1 = normalise(n̂ × a) with a the coordinate axis
+/// least aligned with n̂, t2 = n̂ × t1 (SPEC §4.5). In 2-D, t1 is n̂ rotated by 90° in-plane.
+fn tangent_basis(n: V3, d: usize) -> (V3, V3) {
+    if d == 2 {
+        return ([-n[1], n[0], 0.0], [0.0, 0.0, 0.0]);
+    }
+    let mut k = 0;
+    for a in 1..3 {
+        if n[a].abs() < n[k].abs() {
+            k = a;
+        }
+    }
+    let mut axis = [0.0; 3];
+    axis[k] = 1.0;
+    let cross = |u: V3, v: V3| [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+    let t = cross(n, axis);
+    let l = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+    let t1 = [t[0] / l, t[1] / l, t[2] / l];
+    (t1, cross(n, t1))
 }
 
 /// Displacement [m] and velocity [m/s] of a boundary object at time t (SPEC §4.1).

@@ -42,6 +42,9 @@ pub struct Scenario {
     /// Regions whose solid particles are kinematic and held still (clamps, ligaments; SPEC §4.2).
     #[serde(default)]
     pub fixed_regions: Vec<Region>,
+    /// Glisson's capsule: surface detection and resolution enhancement of the solid (SPEC §4.5).
+    #[serde(default)]
+    pub membrane: Option<Membrane>,
     /// Simulated time [s] of a run (after relaxation).
     pub duration: f64,
     /// Optional damped relaxation before t = 0 (SPEC §7.5).
@@ -346,6 +349,28 @@ fn d_static() -> Motion {
 }
 fn d_mirror() -> PressureMode {
     PressureMode::Mirror
+}
+
+/// Membrane (Glisson's capsule), thesis §3.1.2–3.1.3, SPEC §4.5: solid particles whose neighbourhood
+/// centre of mass is offset by more than `threshold`·Δx_s are membrane particles; each gets `count`
+/// children on its tangent plane at `radius`·Δx_s (the parent's mass shared equally). Membrane particles
+/// hold nˡ at 1 − nˢ_sat and are boundary particles for the liquid.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct Membrane {
+    /// δ_mem / Δx_s (default 0.5).
+    pub threshold: f64,
+    /// N_e, children per membrane particle (default 3: a four-fold surface count, SPEC D-24).
+    pub count: u32,
+    /// r_e / Δx_s (default 0.5).
+    pub radius: f64,
+    /// θ₀ [rad] of the first child (default π/4).
+    pub angle: f64,
+}
+impl Default for Membrane {
+    fn default() -> Self {
+        Membrane { threshold: 0.5, count: 3, radius: 0.5, angle: std::f64::consts::FRAC_PI_4 }
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -430,6 +430,25 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             "coarsen Δx with --set numerics.dx_…",
         ));
     }
+    if let Some(m) = &s.membrane {
+        if s.solid.is_none() {
+            return Err(Check::fail(
+                "membrane",
+                "a membrane wraps the solid, but there is no solid",
+                "remove it or add solid particles",
+            ));
+        }
+        Check::range("membrane.threshold", m.threshold, 0.05, 2.0, "δ_mem/Δx_s; 0.5 selects the outer layer")?;
+        Check::range("membrane.radius", m.radius, 0.0, 1.0, "r_e/Δx_s, e.g. 0.5")?;
+        Check::finite("membrane.angle", m.angle)?;
+        if m.count > 12 {
+            return Err(Check::fail(
+                "membrane.count",
+                format!("{} children per particle is absurd", m.count),
+                "the thesis quadruples the surface count: 3",
+            ));
+        }
+    }
     if let Some(r) = &s.relaxation {
         Check::non_negative("relaxation.duration", r.duration, "seconds")?;
         Check::non_negative("relaxation.damping", r.damping, "1/s, e.g. 20")?;
