@@ -119,6 +119,50 @@ struct ObjectGpu {
     _pad: u32,
 }
 
+// Mirrors `MotionGpu`: one boundary object's rest shape, pressure mode and analytic motion
+// (`scenario::motion_at`), evaluated on the GPU from the GPU clock by `batch_motion` (batch.wgsl).
+struct MotionGpu {
+    rest_a: vec4<f32>,
+    rest_b: vec4<f32>,
+    // Translate: velocity [m/s]; Oscillate: amplitude [m] (z = 0 in 2-D)
+    vec: vec4<f32>,
+    // Translate: start (hi, lo), stop (hi, lo) as f32 pairs [s]; Oscillate: ω = 2πf, phase
+    times: vec4<f32>,
+    density: f32,
+    pressure: f32,
+    kind: u32,
+    // 0 static, 1 translate, 2 oscillate
+    motion: u32,
+}
+
+// Mirrors `BatchState`: the GPU clock and the per-batch control/statistics of `GpuSolver::advance`.
+struct BatchState {
+    // clock tⁿ as an unevaluated f32 pair hi + lo (two-sum, SPEC §5.4), and tⁿ⁺¹ of the running step
+    t_hi: f32,
+    t_lo: f32,
+    tn_hi: f32,
+    tn_lo: f32,
+    // t_end of the batch (pair); the batch stops after the first step with tⁿ⁺¹ ≥ t_end − margin
+    end_hi: f32,
+    end_lo: f32,
+    steps: u32,
+    // 0 running, 1 t_end reached, 2 diverged / Δt collapsed
+    stop: u32,
+    fail_status: u32,
+    bad_liquid: u32,
+    bad_solid: u32,
+    broken_ends: u32,
+    fail_dt: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+    // workgroup counts per dispatch class (liquid, solid, boundary, cells, cells + 1, one)
+    wg: array<u32, 8>,
+    // per step of the batch: Δt and its limiting criterion
+    dt: array<f32, 64>,
+    limit: array<u32, 64>,
+}
+
 // Mirrors `Mat3Gpu`: glam's column-major Mat3, one vec4 per column (w unused).
 struct Mat3Gpu {
     c0: vec4<f32>,
@@ -209,6 +253,10 @@ const JACOBI_SWEEPS: u32 = 6u;
 @group(0) @binding(34) var<storage, read_write> grid_cell_start: array<u32>;
 @group(0) @binding(35) var<storage, read_write> grid_cell_of: array<u32>;
 @group(0) @binding(36) var<storage, read_write> grid_cursor: array<atomic<u32>>;
+// batched stepping (batch.wgsl): control block, motion table, indirect dispatch arguments
+@group(0) @binding(37) var<storage, read_write> batch: BatchState;
+@group(0) @binding(38) var<storage, read_write> motions: array<MotionGpu>;
+@group(0) @binding(39) var<storage, read_write> indirect_args: array<u32>;
 
 // ---- small helpers mirroring glam (same operation order) ----
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {

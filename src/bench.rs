@@ -69,7 +69,8 @@ pub fn perfused_block(n: usize) -> Result<Scenario, ScenarioError> {
 }
 
 /// Steps `sc` on `backend` for at least `min_wall_s` seconds (after one warm-up step) and at least
-/// `min_steps` steps, at most `max_steps`.
+/// `min_steps` steps, at most `max_steps`, with `Simulation::advance` (GPU: batches, no per-step
+/// readback).
 pub fn measure(
     sc: &Scenario,
     backend: BackendKind,
@@ -85,8 +86,14 @@ pub fn measure(
     let start = Instant::now();
     let mut n = 0u64;
     while n < max_steps && (n < min_steps || start.elapsed().as_secs_f64() < min_wall_s) {
-        sim.step()?;
-        n += 1;
+        // Chunks (one GPU batch each) sized from the time per step so far, so that the run ends near
+        // `min_wall_s`: one step first, then at most what the remaining time allows.
+        let elapsed = start.elapsed().as_secs_f64();
+        let per_step = if n > 0 { elapsed / n as f64 } else { f64::INFINITY };
+        let by_time = ((min_wall_s - elapsed) / per_step).ceil().max(0.0) as u64;
+        let chunk = by_time.max(min_steps.saturating_sub(n)).clamp(1, u64::from(crate::sim::ADVANCE_CHUNK));
+        let chunk = chunk.min(max_steps - n) as u32;
+        n += sim.advance(chunk, f64::INFINITY)?.steps;
     }
     let wall = start.elapsed().as_secs_f64();
     let state = sim.read_state()?;

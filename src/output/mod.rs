@@ -201,21 +201,28 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     let mut steps = 0u64;
     let run_start = Instant::now();
     let mut last_bar = Instant::now();
+    let steps0 = sim.stats().steps;
     while divergence.is_none() && sim.time() < t_end && steps < max_steps {
-        match sim.step() {
-            Ok(info) => {
-                steps += 1;
-                if info.t >= next_frame - 1e-12 || info.t >= next_probe - 1e-12 {
+        // One chunk (one GPU batch) up to the next frame, probe or end time: a frame or probe is taken
+        // at the first step at or after its time, as with single steps.
+        let target = (next_frame - 1e-12).min(next_probe - 1e-12).min(t_end);
+        let chunk = (max_steps - steps).min(u64::from(crate::sim::ADVANCE_CHUNK)) as u32;
+        let result = if target > sim.time() { sim.advance(chunk, target) } else { sim.advance(1, f64::INFINITY) };
+        steps = sim.stats().steps - steps0;
+        match result {
+            Ok(adv) => {
+                let t = adv.t;
+                if t >= next_frame - 1e-12 || t >= next_probe - 1e-12 {
                     let st = sim.read_state()?;
-                    if info.t >= next_probe - 1e-12 {
+                    if t >= next_probe - 1e-12 {
                         probe_rows.push((st.t, probes.iter().map(|p| probe_value(&st, p, origin)).collect()));
-                        while next_probe <= info.t {
+                        while next_probe <= t {
                             next_probe += probe_dt;
                         }
                     }
-                    if info.t >= next_frame - 1e-12 {
+                    if t >= next_frame - 1e-12 {
                         write_frame(&st, &mut frames)?;
-                        while next_frame <= info.t {
+                        while next_frame <= t {
                             next_frame += frame_dt.unwrap_or(f64::INFINITY);
                         }
                     }
@@ -224,9 +231,14 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
                     && last_bar.elapsed().as_millis() > 200
                 {
                     last_bar = Instant::now();
-                    let frac = if t_end.is_finite() { info.t / t_end } else { steps as f64 / max_steps as f64 };
+                    let frac = if t_end.is_finite() { t / t_end } else { steps as f64 / max_steps as f64 };
+                    let limit = crate::sim::DtLimit::ALL
+                        .iter()
+                        .zip(adv.limited_by)
+                        .max_by_key(|(_, n)| *n)
+                        .map_or("", |(l, _)| l.name());
                     b.set_position((frac.clamp(0.0, 1.0) * 1000.0) as u64);
-                    b.set_message(format!("t = {:.4} s, dt = {:.2e} s ({})", info.t, info.dt, info.limit.name()));
+                    b.set_message(format!("t = {t:.4} s, dt = {:.2e} s ({limit})", adv.dt_max));
                 }
             }
             Err(e) => divergence = Some(e.to_string()),

@@ -52,6 +52,20 @@ pub struct StepInfo {
     pub broken_bonds: u64,
 }
 
+/// What [`Simulation::advance`] did: enough to keep [`RunStats`] exact without per-step results.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Advance {
+    pub steps: u64,
+    /// Clock after the last step [s].
+    pub t: f64,
+    /// Smallest and largest Δt of the batch [s] (0 when no step was taken).
+    pub dt_min: f64,
+    pub dt_max: f64,
+    /// Steps limited by each criterion, in [`DtLimit::ALL`] order.
+    pub limited_by: [u64; 6],
+    pub broken_bonds: u64,
+}
+
 /// Commands: the only way to change a running simulation (viewer input, replay, scripted tests).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Command {
@@ -100,6 +114,9 @@ pub struct RunStats {
     pub broken_bonds: u64,
 }
 
+/// Steps per [`Simulation::advance`] call of the chunked loops (one GPU batch).
+pub const ADVANCE_CHUNK: u32 = 64;
+
 enum Engine {
     Cpu(Box<cpu::CpuSolver>),
     Gpu(Box<gpu::GpuSolver>),
@@ -110,6 +127,8 @@ pub struct Simulation {
     engine: Engine,
     scenario: Scenario,
     stats: RunStats,
+    /// Wall time of GPU batches [s] (whole-step timing without timestamp queries).
+    gpu_wall_s: f64,
 }
 
 impl Simulation {
@@ -125,6 +144,7 @@ impl Simulation {
             engine,
             scenario: scenario.clone(),
             stats: RunStats { dt_min: f64::INFINITY, ..Default::default() },
+            gpu_wall_s: 0.0,
         })
     }
 
@@ -154,7 +174,12 @@ impl Simulation {
     pub fn step(&mut self) -> Result<StepInfo, SimError> {
         let info = match &mut self.engine {
             Engine::Cpu(c) => c.step()?,
-            Engine::Gpu(g) => g.step()?,
+            Engine::Gpu(g) => {
+                let start = std::time::Instant::now();
+                let info = g.step();
+                self.gpu_wall_s += start.elapsed().as_secs_f64();
+                info?
+            }
         };
         let s = &mut self.stats;
         s.steps += 1;
@@ -165,7 +190,63 @@ impl Simulation {
         Ok(info)
     }
 
-    /// Steps until the clock reaches `t_end` (or `max_steps` steps), calling `progress(t)` after each.
+    /// Takes up to `max_steps` steps, stopping after the first step whose end time reaches `t_end`
+    /// (none if the clock is already there). The CPU loops over `step`; the GPU encodes the steps in
+    /// batches with one readback each (`GpuSolver::advance`). [`RunStats`] count every step taken, also
+    /// when a later one diverges (then `SimError::Diverged` names the diverging step and the last good
+    /// state is kept, as with [`Simulation::step`]).
+    pub fn advance(&mut self, max_steps: u32, t_end: f64) -> Result<Advance, SimError> {
+        let mut adv = Advance { t: self.time(), ..Default::default() };
+        match &mut self.engine {
+            Engine::Cpu(_) => {
+                while adv.steps < u64::from(max_steps) && self.time() < t_end {
+                    let info = self.step()?;
+                    adv.steps += 1;
+                    let dt = info.dt as f64;
+                    if adv.steps == 1 {
+                        (adv.dt_min, adv.dt_max) = (dt, dt);
+                    }
+                    adv.dt_min = adv.dt_min.min(dt);
+                    adv.dt_max = adv.dt_max.max(dt);
+                    if let Some(i) = DtLimit::ALL.iter().position(|l| *l == info.limit) {
+                        adv.limited_by[i] += 1;
+                    }
+                    adv.broken_bonds += info.broken_bonds;
+                    adv.t = info.t;
+                }
+            }
+            Engine::Gpu(g) => {
+                let mut acc = gpu::BatchTotals::default();
+                let r = g.advance(u64::from(max_steps), t_end, &mut acc);
+                self.gpu_wall_s += acc.wall_s;
+                adv = Advance {
+                    steps: acc.steps,
+                    t: g.time(),
+                    dt_min: acc.dt_min as f64,
+                    dt_max: acc.dt_max as f64,
+                    limited_by: acc.limited_by,
+                    broken_bonds: acc.broken_bonds,
+                };
+                let s = &mut self.stats;
+                if acc.steps > 0 {
+                    s.steps += acc.steps;
+                    s.dt_min = s.dt_min.min(adv.dt_min);
+                    s.dt_max = s.dt_max.max(adv.dt_max);
+                    for (l, n) in DtLimit::ALL.iter().zip(acc.limited_by) {
+                        if n > 0 {
+                            *s.dt_limited_by.entry(l.name().to_string()).or_insert(0) += n;
+                        }
+                    }
+                    s.broken_bonds += acc.broken_bonds;
+                }
+                r?;
+            }
+        }
+        Ok(adv)
+    }
+
+    /// Steps until the clock reaches `t_end` (or `max_steps` steps), in chunks of up to
+    /// [`ADVANCE_CHUNK`] steps, calling `progress(t)` after each chunk.
     pub fn advance_until(
         &mut self,
         t_end: f64,
@@ -174,9 +255,13 @@ impl Simulation {
     ) -> Result<u64, SimError> {
         let mut n = 0;
         while self.time() < t_end && n < max_steps {
-            let info = self.step()?;
-            progress(info.t);
-            n += 1;
+            let chunk = (max_steps - n).min(u64::from(ADVANCE_CHUNK)) as u32;
+            let adv = self.advance(chunk, t_end)?;
+            if adv.steps == 0 {
+                break;
+            }
+            progress(adv.t);
+            n += adv.steps;
         }
         Ok(n)
     }
@@ -206,8 +291,8 @@ impl Simulation {
     pub fn pass_times(&self) -> Vec<(String, f64)> {
         match &self.engine {
             Engine::Cpu(c) => c.timers.totals.iter().map(|(k, v)| (k.to_string(), v.as_secs_f64())).collect(),
-            // No per-pass GPU timers yet (timestamp queries): nothing to report.
-            Engine::Gpu(_) => Vec::new(),
+            // Timestamp queries per pass family, else the whole step's wall time.
+            Engine::Gpu(g) => g.pass_times().unwrap_or_else(|| vec![(String::from("step"), self.gpu_wall_s)]),
         }
     }
 

@@ -27,3 +27,35 @@ Scenario(
 pub fn perfused_block() -> Scenario {
     Scenario::from_str_named(PERFUSED_BLOCK_3D, "gpu_test_block.ron").expect("test scene is valid")
 }
+
+/// [`PERFUSED_BLOCK_3D`] with the tool oscillating vertically instead of descending.
+pub fn perfused_block_oscillating() -> Scenario {
+    let text = PERFUSED_BLOCK_3D.replace(
+        "motion: Translate(velocity: (0.0, 0.0, -0.1))",
+        "motion: Oscillate(amplitude: (0.0, 0.0, -0.0006), frequency: 100.0, phase: 0.3)",
+    );
+    assert_ne!(text, PERFUSED_BLOCK_3D, "the tool's motion was replaced");
+    Scenario::from_str_named(&text, "gpu_test_block_osc.ron").expect("test scene is valid")
+}
+
+/// The 2-D start-up Poiseuille channel (periodic in x) re-gridded to 20 rows × 10 columns (Δx = 1 mm),
+/// as `analysis::validate`'s channel overrides.
+pub fn poiseuille_small() -> Scenario {
+    let (h, dx) = (0.01f64, 0.001f64);
+    let lx = 10.0 * dx;
+    let wall = h + 3.0 * dx;
+    let ov = vec![
+        format!("numerics.dx_liquid={dx}"),
+        format!("domain.min=[0.0, {}, 0.0]", -(wall + dx).max(0.0125)),
+        format!("domain.max=[{lx}, {}, 0.0]", (wall + dx).max(0.0125)),
+        format!("particles.0.max=[{lx}, {h}, 0.0]"),
+        format!("boundaries.0.shape.min=[0.0, {h}, 0.0]"),
+        format!("boundaries.0.shape.max=[{lx}, {wall}, 0.0]"),
+        format!("boundaries.0.spacing={dx}"),
+        format!("boundaries.1.shape.min=[0.0, {}, 0.0]", -wall),
+        format!("boundaries.1.shape.max=[{lx}, {}, 0.0]", -h),
+        format!("boundaries.1.spacing={dx}"),
+    ];
+    let text = include_str!("../../assets/scenarios/poiseuille.ron");
+    Scenario::from_str_with_overrides(text, "assets/scenarios/poiseuille.ron", &ov).expect("test scene is valid")
+}

@@ -45,6 +45,10 @@ pub enum Slot {
     GridCellStart,
     GridCellOf,
     GridCursor,
+    /// Batched stepping (batch.wgsl): control block and GPU clock, motion table, indirect arguments.
+    Batch,
+    Motions,
+    IndirectArgs,
 }
 
 impl Slot {
@@ -93,6 +97,9 @@ impl Slot {
             Slot::GridCellStart => "grid_cell_start",
             Slot::GridCellOf => "grid_cell_of",
             Slot::GridCursor => "grid_cursor",
+            Slot::Batch => "batch",
+            Slot::Motions => "motions",
+            Slot::IndirectArgs => "indirect_args",
         }
     }
 
@@ -134,5 +141,6 @@ mod tests {
         assert_eq!(Slot::BondCount.binding(), 21);
         assert_eq!(Slot::BoundaryCellStart.binding(), 30);
         assert_eq!(Slot::GridCursor.binding(), 36);
+        assert_eq!(Slot::IndirectArgs.binding(), 39);
     }
 }

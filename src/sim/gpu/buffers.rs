@@ -19,7 +19,7 @@ pub struct SimBuffers {
     backups: Vec<(Slot, wgpu::Buffer)>,
 }
 
-/// Buffers holding evolving state: copied to backups at the start of each step.
+/// Buffers holding evolving state: copied to backups at the start of each batch of steps.
 pub const STATE_SLOTS: &[Slot] = &[
     Slot::LiquidPos,
     Slot::LiquidVel,
@@ -39,11 +39,19 @@ pub const STATE_SLOTS: &[Slot] = &[
     Slot::SolidStress,
     Slot::BondTable,
     Slot::BondCount,
+    // the object poses at tⁿ (written on the GPU by `batch_motion`): restored with the state so a
+    // re-run of a diverged batch step by step sees the same boundaries
+    Slot::Objects,
 ];
 
 fn usage(slot: Slot) -> wgpu::BufferUsages {
     if slot.is_uniform() {
         wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST
+    } else if slot == Slot::IndirectArgs {
+        wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::INDIRECT
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC
     } else {
         wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC
     }
@@ -78,7 +86,7 @@ impl SimBuffers {
         max_set: usize,
         cells: usize,
     ) -> SimBuffers {
-        let mut by_slot: Vec<Option<wgpu::Buffer>> = (0..=Slot::GridCursor.binding()).map(|_| None).collect();
+        let mut by_slot: Vec<Option<wgpu::Buffer>> = (0..=Slot::IndirectArgs.binding()).map(|_| None).collect();
         for (slot, data) in init {
             by_slot[slot.binding() as usize] = Some(create_init(device, slot, &data));
         }

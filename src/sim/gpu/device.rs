@@ -46,6 +46,8 @@ pub struct GpuContext {
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
     pub limits: wgpu::Limits,
+    /// Whether the device has `TIMESTAMP_QUERY` (per-pass GPU timers).
+    pub timestamps: bool,
 }
 
 /// Sets `XDG_RUNTIME_DIR` to a private 0700 directory if it is unset, which silences the
@@ -71,7 +73,11 @@ pub fn create_instance() -> wgpu::Instance {
     ensure_runtime_dir();
     wgpu::Instance::new(wgpu::InstanceDescriptor {
         backends: wgpu::Backends::VULKAN | wgpu::Backends::METAL | wgpu::Backends::DX12,
-        flags: wgpu::InstanceFlags::from_build_config().with_env(),
+        // Indirect-dispatch validation would add one extra dispatch per indirect dispatch of a batch;
+        // our arguments are the host's own workgroup counts or zero (batch.wgsl), never out of range.
+        flags: wgpu::InstanceFlags::from_build_config()
+            .with_env()
+            .difference(wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL),
         ..wgpu::InstanceDescriptor::new_without_display_handle()
     })
 }
@@ -159,14 +165,16 @@ impl GpuContext {
         }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("perfuse.device"),
-            required_features: wgpu::Features::empty(),
+            // Timestamp queries (per-pass timers, `GpuSolver::pass_times`) where the adapter has them.
+            required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
             required_limits: limits.clone(),
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,
         }))
         .map_err(|source| GpuError::RequestDevice { adapter: info.name.clone(), source })?;
-        Ok(GpuContext { device, queue, info, limits })
+        let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        Ok(GpuContext { device, queue, info, limits, timestamps })
     }
 }
 

@@ -207,6 +207,59 @@ pub struct ObjectGpu {
     pub _pad: u32,
 }
 
+/// `MotionGpu` (common.wgsl): one boundary object's rest shape, pressure mode and analytic motion.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct MotionGpu {
+    pub rest_a: [f32; 4],
+    pub rest_b: [f32; 4],
+    pub vec: [f32; 4],
+    pub times: [f32; 4],
+    pub density: f32,
+    pub pressure: f32,
+    pub kind: u32,
+    pub motion: u32,
+}
+
+/// Steps per batch: the length of `BatchState`'s per-step arrays.
+pub const MAX_BATCH: usize = 64;
+
+/// `BatchState::stop` values (batch.wgsl `STOP_*`).
+pub mod stop {
+    pub const RUNNING: u32 = 0;
+    pub const END: u32 = 1;
+    pub const FAILED: u32 = 2;
+}
+
+/// `BatchState` (common.wgsl): the GPU clock (f32 pair) and one batch's control and statistics.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct BatchState {
+    pub t_hi: f32,
+    pub t_lo: f32,
+    pub tn_hi: f32,
+    pub tn_lo: f32,
+    pub end_hi: f32,
+    pub end_lo: f32,
+    pub steps: u32,
+    pub stop: u32,
+    pub fail_status: u32,
+    pub bad_liquid: u32,
+    pub bad_solid: u32,
+    pub broken_ends: u32,
+    pub fail_dt: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+    pub wg: [u32; 8],
+    pub dt: [f32; MAX_BATCH],
+    pub limit: [u32; MAX_BATCH],
+}
+
+/// Byte offset of `BatchState::end_hi`: the host rewrites the block from here per batch, leaving the
+/// GPU clock (t_hi, t_lo) untouched.
+pub const BATCH_HEADER_OFFSET: u64 = offset_of!(BatchState, end_hi) as u64;
+
 /// `Mat3Gpu` (common.wgsl): glam's column-major `Mat3`, one `vec4` per column.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
@@ -255,6 +308,8 @@ const _: () = assert!(size_of::<ObjectGpu>() == 80);
 const _: () = assert!(size_of::<Mat3Gpu>() == 48);
 const _: () = assert!(size_of::<StressGpu>() == 96);
 const _: () = assert!(size_of::<GridSet>() == 16);
+const _: () = assert!(size_of::<MotionGpu>() == 80);
+const _: () = assert!(size_of::<BatchState>() == 96 + 8 * MAX_BATCH);
 
 /// One struct's layout: (WGSL struct name, Rust size, [(member, Rust offset)]).
 pub type StructLayout = (&'static str, usize, &'static [(&'static str, usize)]);
@@ -301,4 +356,20 @@ pub const LAYOUTS: &[StructLayout] = &[
     ("Mat3Gpu", size_of::<Mat3Gpu>(), &[("c1", offset_of!(Mat3Gpu, c1)), ("c2", offset_of!(Mat3Gpu, c2))]),
     ("StressGpu", size_of::<StressGpu>(), &[("art", offset_of!(StressGpu, art))]),
     ("GridSet", size_of::<GridSet>(), &[("cells", offset_of!(GridSet, cells))]),
+    (
+        "MotionGpu",
+        size_of::<MotionGpu>(),
+        &[("times", offset_of!(MotionGpu, times)), ("motion", offset_of!(MotionGpu, motion))],
+    ),
+    (
+        "BatchState",
+        size_of::<BatchState>(),
+        &[
+            ("end_hi", offset_of!(BatchState, end_hi)),
+            ("fail_dt", offset_of!(BatchState, fail_dt)),
+            ("wg", offset_of!(BatchState, wg)),
+            ("dt", offset_of!(BatchState, dt)),
+            ("limit", offset_of!(BatchState, limit)),
+        ],
+    ),
 ];

@@ -9,11 +9,20 @@
 //! FMA contraction). No float atomics: the grid uses integer atomics plus a per-cell sort, Δt a
 //! bit-pattern atomicMin/Max, so a run is bit-reproducible on one adapter.
 //!
-//! Host synchronisation: Δt stays on the GPU (`step.dt`, read by the integrator), but [`GpuSolver::step`]
-//! reads the 48-byte `StepState` back twice per step: after Δt (the f64 clock and the analytic boundary
-//! motions of `motion_at` are evaluated on the host at tⁿ⁺¹ and uploaded before the second half) and
-//! at the end (divergence status, broken bonds). The initial state, the bond table (built once,
-//! SPEC §4.6) and the object shapes come from `CpuSolver::new`, so both back-ends start bit-identical.
+//! Host synchronisation (batched stepping, [`GpuSolver::advance`]): a batch of up to
+//! [`gpu_types::MAX_BATCH`] steps is encoded into one submission with ONE readback at its end (the
+//! 608-byte `BatchState`). Δt, the clock and the analytic boundary motions stay on the GPU
+//! (`shaders/batch.wgsl`): the clock is an f32 pair updated by two-sum, the object poses at tⁿ⁺¹ are
+//! evaluated from it by `batch_motion` (the twin of `scenario::motion_at`, in f32), and every pass of a
+//! step is dispatched indirectly from arguments that `batch_begin` zeroes once the batch has stopped
+//! (t_end reached, Δt collapsed, non-finite state), so the rest of the batch is a no-op. The host keeps
+//! the authoritative f64 clock by summing the per-step Δt read back at the end, exactly as the CPU
+//! does. The state (and the object table) is backed up at the start of each batch; a diverged batch is
+//! restored and re-run one step per batch (bit-identical: nothing depends on the batch length) to find
+//! the diverging step, which is reported as before with the last good state kept. [`GpuSolver::step`]
+//! is a batch of one. One batch in 32 is timed per pass family with timestamp queries when the device
+//! has them (`pass_times`). The initial state, the bond table (built once, SPEC §4.6) and the object
+//! shapes come from `CpuSolver::new`, so both back-ends start bit-identical.
 
 pub mod bindings;
 pub mod buffers;
@@ -33,9 +42,12 @@ use buffers::SimBuffers;
 use bytemuck::Pod;
 pub use device::{GpuContext, GpuError};
 use glam::{Mat3, Vec3};
-use gpu_types::{Counts, GridSet, Mat3Gpu, ObjectGpu, SimParams, StepState, StressGpu};
+use gpu_types::{
+    BATCH_HEADER_OFFSET, BatchState, Counts, GridSet, MAX_BATCH, Mat3Gpu, MotionGpu, ObjectGpu, SimParams, StepState,
+    StressGpu,
+};
 use passes::{Dispatch, GridOf, PassSpec, Stage};
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 
 impl From<GpuError> for SimError {
     fn from(e: GpuError) -> Self {
@@ -56,7 +68,13 @@ pub struct GpuSolver {
     errors: device::ErrorSink,
     buffers: SimBuffers,
     pipelines: HashMap<&'static str, Pipeline>,
-    step_staging: wgpu::Buffer,
+    batch_staging: wgpu::Buffer,
+    /// The GPU clock (f32 pair) at the end of the last batch, restored with a diverged batch's state.
+    clock: [f32; 2],
+    /// Workgroup counts per dispatch class (see [`dispatch_class`]), uploaded with each batch.
+    wg_template: [u32; 8],
+    timer: Option<PassTimer>,
+    batches: u64,
     counts: Counts,
     cells: u32,
     t: f64,
@@ -80,6 +98,67 @@ fn v4(v: Vec3, w: f32) -> [f32; 4] {
 
 fn bytes<T: Pod>(v: &[T]) -> Vec<u8> {
     bytemuck::cast_slice(v).to_vec()
+}
+
+/// Per-pass-family GPU timers: timestamp queries around one compute pass per family segment of a
+/// timed batch (every [`TIMED_EVERY`]th), resolved and read back with that batch's `BatchState`.
+struct PassTimer {
+    query_set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    /// Nanoseconds per timestamp tick.
+    period_ns: f64,
+    /// Measured seconds per family, and the steps they cover.
+    totals: BTreeMap<&'static str, f64>,
+    timed_steps: u64,
+}
+
+/// Timestamp queries in one timed batch (wgpu's maximum query-set size).
+const MAX_QUERIES: u32 = wgpu::QUERY_SET_MAX_QUERIES;
+/// One batch in this many is timed per pass.
+const TIMED_EVERY: u64 = 32;
+
+/// Host accumulator of what a batch did (the GPU side of `sim::Advance`).
+#[derive(Clone, Debug, Default)]
+pub struct BatchTotals {
+    pub steps: u64,
+    pub dt_min: f32,
+    pub dt_max: f32,
+    /// Steps limited by each criterion, in `DtLimit::ALL` order.
+    pub limited_by: [u64; 6],
+    pub broken_bonds: u64,
+    /// Wall time spent in batches [s] (whole-step timing without timestamp queries).
+    pub wall_s: f64,
+}
+
+/// Index of a dispatch's class in `BatchState::wg` / `indirect_args` (batch.wgsl `write_args`).
+fn dispatch_class(spec: &PassSpec, grid: Option<GridOf>) -> usize {
+    match spec.dispatch {
+        Dispatch::Liquid => 0,
+        Dispatch::Solid => 1,
+        Dispatch::Boundary => 2,
+        Dispatch::GridParticles => match grid {
+            Some(GridOf::Solid) => 1,
+            Some(GridOf::Boundary) => 2,
+            _ => 0,
+        },
+        Dispatch::GridCells => 3,
+        Dispatch::GridCellsPlusOne => 4,
+        Dispatch::One => 5,
+    }
+}
+
+/// How an item of a batched step is dispatched.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    Direct,
+    Indirect,
+}
+
+/// `t` as an f32 pair hi + lo (batch.wgsl's clock format).
+fn split_pair(t: f64) -> [f32; 2] {
+    let hi = t as f32;
+    [hi, (t - hi as f64) as f32]
 }
 
 fn diverged(step: u64, t: f64, particle: String, reason: String) -> SimError {
@@ -122,6 +201,22 @@ impl GpuSolver {
         solver_init.push((Slot::Step, bytes(&[StepState::default()])));
         let objects = objects_at(&params, &st.objects, &shapes, &cpu.pressure_modes, st.t);
         solver_init.push((Slot::Objects, bytes(&objects)));
+        let wg_template = [
+            counts.liquid.div_ceil(passes::WORKGROUP),
+            counts.solid.div_ceil(passes::WORKGROUP),
+            counts.boundary.div_ceil(passes::WORKGROUP),
+            cells.div_ceil(passes::WORKGROUP),
+            (cells + 1).div_ceil(passes::WORKGROUP),
+            1,
+            0,
+            0,
+        ];
+        let clock = split_pair(st.t);
+        let mut batch0: BatchState = bytemuck::Zeroable::zeroed();
+        (batch0.t_hi, batch0.t_lo, batch0.wg) = (clock[0], clock[1], wg_template);
+        solver_init.push((Slot::Batch, bytes(&[batch0])));
+        solver_init.push((Slot::Motions, bytes(&motion_table(&params, &st.objects, &shapes, &cpu.pressure_modes))));
+        solver_init.push((Slot::IndirectArgs, vec![0u8; 4 * 18]));
         for (slot, n) in [
             (Slot::LiquidOrder, counts.liquid as usize),
             (Slot::SolidOrder, counts.solid as usize),
@@ -137,19 +232,24 @@ impl GpuSolver {
         let max_set = counts.liquid.max(counts.solid).max(counts.boundary) as usize;
         let buffers = SimBuffers::new(&ctx.device, solver_init, [&g0, &g1, &g2], max_set, cells as usize);
         let pipelines = create_pipelines(&ctx.device, &buffers)?;
-        let step_staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("perfuse.step_readback"),
-            size: std::mem::size_of::<StepState>() as u64,
+        let batch_staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("perfuse.batch_readback"),
+            size: std::mem::size_of::<BatchState>() as u64,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let timer = ctx.timestamps.then(|| PassTimer::new(&ctx));
         let mut solver = GpuSolver {
             params,
             ctx,
             errors,
             buffers,
             pipelines,
-            step_staging,
+            batch_staging,
+            clock,
+            wg_template,
+            timer,
+            batches: 0,
             counts,
             cells,
             t: st.t,
@@ -289,21 +389,6 @@ impl GpuSolver {
         self.errors.take("run_stages")
     }
 
-    /// Submits `enc` with a copy of `StepState` appended and returns it.
-    fn submit_and_read_step(&self, mut enc: wgpu::CommandEncoder) -> Result<StepState, GpuError> {
-        let step = self.buffer(Slot::Step)?;
-        enc.copy_buffer_to_buffer(step, 0, &self.step_staging, 0, std::mem::size_of::<StepState>() as u64);
-        self.ctx.queue.submit([enc.finish()]);
-        let v: Vec<StepState> = buffers::map_and_read(
-            &self.ctx.device,
-            &self.step_staging,
-            std::mem::size_of::<StepState>() as u64,
-            "step",
-        )?;
-        self.errors.take("step")?;
-        v.first().copied().ok_or(GpuError::Readback { buffer: "step".into(), message: "empty".into() })
-    }
-
     fn upload_params(&self) -> Result<(), GpuError> {
         let gravity_liquid = !(self.damping > 0.0 && self.damping_solid_gravity_only);
         let sp = SimParams::new(&self.params, self.counts, self.gravity, self.damping, gravity_liquid);
@@ -319,63 +404,269 @@ impl GpuSolver {
         Ok(())
     }
 
-    /// One predictor–corrector step (SPEC §5.1–5.2); on divergence the last good state is restored.
-    pub fn step(&mut self) -> Result<StepInfo, SimError> {
-        // First half: back up, evaluation 0 (+XSPH), Δt.
-        let mut enc = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("perfuse.step_first") });
+    fn upload_motions(&self) -> Result<(), GpuError> {
+        let m = motion_table(&self.params, &self.objects, &self.shapes, &self.pressure_modes);
+        if !m.is_empty() {
+            self.ctx.queue.write_buffer(self.buffer(Slot::Motions)?, 0, bytemuck::cast_slice(&m));
+        }
+        Ok(())
+    }
+
+    /// Sets the GPU clock (the f32 pair of batch.wgsl) to `clock`.
+    fn upload_clock(&mut self, clock: [f32; 2]) -> Result<(), GpuError> {
+        self.clock = clock;
+        self.ctx.queue.write_buffer(self.buffer(Slot::Batch)?, 0, bytemuck::cast_slice(&clock));
+        Ok(())
+    }
+
+    /// The items of one batched step: `batch_begin`, the first half (indirect), `batch_motion`, the
+    /// second half (indirect), `batch_end`.
+    fn step_items() -> Vec<(PassSpec, Option<GridOf>, Mode)> {
+        let mut out = vec![(passes::BATCH_BEGIN, None, Mode::Direct)];
+        let push = |stages: &[Stage], out: &mut Vec<(PassSpec, Option<GridOf>, Mode)>| {
+            for stage in stages {
+                match stage {
+                    Stage::Pass(spec) => out.push((*spec, None, Mode::Indirect)),
+                    Stage::Grid(set) => {
+                        out.extend(passes::GRID_BUILD.iter().map(|spec| (*spec, Some(*set), Mode::Indirect)))
+                    }
+                }
+            }
+        };
+        push(passes::STEP_FIRST, &mut out);
+        out.push((passes::BATCH_MOTION, None, Mode::Direct));
+        push(passes::STEP_SECOND, &mut out);
+        out.push((passes::BATCH_END, None, Mode::Direct));
+        out
+    }
+
+    /// Records one dispatch of a batch into `pass`.
+    fn dispatch_item(&self, pass: &mut wgpu::ComputePass<'_>, spec: &PassSpec, grid: Option<GridOf>, mode: Mode) {
+        let wg = self.workgroups(spec, grid);
+        if wg == 0 || (grid.is_some() && self.workgroups(&passes::GRID_COUNT, grid) == 0) {
+            return;
+        }
+        let Some(p) = self.pipelines.get(spec.entry) else { return };
+        let Some((_, bg)) = p.groups.iter().find(|(g, _)| *g == grid) else { return };
+        pass.set_pipeline(&p.pipeline);
+        pass.set_bind_group(0, bg, &[]);
+        let class = dispatch_class(spec, grid);
+        match (mode, self.buffer(Slot::IndirectArgs)) {
+            (Mode::Indirect, Ok(args)) if self.wg_template[class] == wg => {
+                pass.dispatch_workgroups_indirect(args, 12 * class as u64)
+            }
+            _ => pass.dispatch_workgroups(wg, 1, 1),
+        }
+    }
+
+    /// Encodes `n` batched steps; with `timed`, one compute pass per family segment with timestamps,
+    /// returning (step, family) of each segment in query order.
+    fn encode_batch(&self, enc: &mut wgpu::CommandEncoder, n: usize, timed: bool) -> Vec<(usize, &'static str)> {
+        let items = Self::step_items();
+        let mut segments = Vec::new();
+        let timer = self.timer.as_ref().filter(|_| timed);
+        let Some(timer) = timer else {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("perfuse.batch"),
+                timestamp_writes: None,
+            });
+            for _ in 0..n {
+                for (spec, grid, mode) in &items {
+                    self.dispatch_item(&mut pass, spec, *grid, *mode);
+                }
+            }
+            return segments;
+        };
+        for k in 0..n {
+            let mut i = 0;
+            while i < items.len() {
+                let family = items[i].0.family;
+                let mut j = i;
+                while j < items.len() && items[j].0.family == family {
+                    j += 1;
+                }
+                let q = 2 * segments.len() as u32;
+                let writes = (q + 2 <= MAX_QUERIES).then(|| wgpu::ComputePassTimestampWrites {
+                    query_set: &timer.query_set,
+                    beginning_of_pass_write_index: Some(q),
+                    end_of_pass_write_index: Some(q + 1),
+                });
+                if writes.is_some() {
+                    segments.push((k, family));
+                }
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("perfuse.batch_timed"),
+                    timestamp_writes: writes,
+                });
+                for (spec, grid, mode) in &items[i..j] {
+                    self.dispatch_item(&mut pass, spec, *grid, *mode);
+                }
+                i = j;
+            }
+        }
+        if !segments.is_empty() {
+            let nq = 2 * segments.len() as u32;
+            enc.resolve_query_set(&timer.query_set, 0..nq, &timer.resolve, 0);
+            enc.copy_buffer_to_buffer(&timer.resolve, 0, &timer.staging, 0, 8 * nq as u64);
+        }
+        segments
+    }
+
+    /// Runs one batch of `n` ≤ [`MAX_BATCH`] steps ending at the first step with tⁿ⁺¹ ≥ `t_end`, with
+    /// one readback; the state at its start is kept in the backups.
+    fn run_batch(&mut self, n: usize, t_end: f64) -> Result<BatchState, GpuError> {
+        let n = n.clamp(1, MAX_BATCH);
+        let mut header: BatchState = bytemuck::Zeroable::zeroed();
+        let end = split_pair(t_end.min(1e30));
+        (header.end_hi, header.end_lo, header.wg) = (end[0], end[1], self.wg_template);
+        let hb = bytemuck::bytes_of(&header);
+        let off = BATCH_HEADER_OFFSET as usize;
+        let hlen = std::mem::offset_of!(BatchState, dt);
+        self.ctx.queue.write_buffer(self.buffer(Slot::Batch)?, BATCH_HEADER_OFFSET, &hb[off..hlen]);
+        // batch 0 (first use: cold caches, lazy driver work) is not timed; then one in TIMED_EVERY
+        let timed = self.timer.is_some() && self.batches % TIMED_EVERY == 1;
+        self.batches += 1;
+        let mut enc =
+            self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("perfuse.batch") });
         self.buffers.encode_backup(&mut enc, false);
-        self.encode(&mut enc, passes::STEP_FIRST);
-        let s = self.submit_and_read_step(enc)?;
-        let limit = dt_limit(s.limit);
-        if s.status & gpu_types::status::DT_COLLAPSED != 0 {
-            self.restore()?;
-            return Err(diverged(
+        let segments = self.encode_batch(&mut enc, n, timed);
+        let size = std::mem::size_of::<BatchState>() as u64;
+        enc.copy_buffer_to_buffer(self.buffer(Slot::Batch)?, 0, &self.batch_staging, 0, size);
+        self.ctx.queue.submit([enc.finish()]);
+        let v: Vec<BatchState> = buffers::map_and_read(&self.ctx.device, &self.batch_staging, size, "batch")?;
+        self.errors.take("batch")?;
+        let b = v.first().copied().ok_or(GpuError::Readback { buffer: "batch".into(), message: "empty".into() })?;
+        if let Some(timer) = self.timer.as_mut().filter(|_| !segments.is_empty()) {
+            let nq = 2 * segments.len() as u64;
+            let ticks: Vec<u64> = buffers::map_and_read(&self.ctx.device, &timer.staging, 8 * nq, "timestamps")?;
+            for (q, (k, family)) in segments.iter().enumerate() {
+                if *k >= b.steps as usize {
+                    continue; // a no-op step after the batch stopped
+                }
+                let (t0, t1) = (ticks.get(2 * q).copied().unwrap_or(0), ticks.get(2 * q + 1).copied().unwrap_or(0));
+                *timer.totals.entry(family).or_insert(0.0) += t1.saturating_sub(t0) as f64 * timer.period_ns * 1e-9;
+            }
+            timer.timed_steps += u64::from(b.steps);
+        }
+        Ok(b)
+    }
+
+    /// Advances the host clock and `acc` by the steps `b` reports (the CPU's `t += Δt as f64`).
+    fn account(&mut self, b: &BatchState, acc: &mut BatchTotals) {
+        for k in 0..(b.steps as usize).min(MAX_BATCH) {
+            let dt = b.dt[k];
+            self.t += dt as f64;
+            self.steps += 1;
+            if acc.steps == 0 {
+                (acc.dt_min, acc.dt_max) = (dt, dt);
+            }
+            acc.steps += 1;
+            acc.dt_min = acc.dt_min.min(dt);
+            acc.dt_max = acc.dt_max.max(dt);
+            let limit = dt_limit(b.limit[k]);
+            if let Some(i) = super::DtLimit::ALL.iter().position(|l| *l == limit) {
+                acc.limited_by[i] += 1;
+            }
+        }
+        acc.broken_bonds += u64::from(b.broken_ends) / 2;
+        self.clock = [b.t_hi, b.t_lo];
+    }
+
+    /// Takes up to `max_steps` steps, stopping after the first whose end time reaches `t_end` (none if
+    /// the clock is already there), in batches of at most [`MAX_BATCH`] steps with one readback each.
+    /// `acc` receives every step taken, also when a later one diverges (the error then reports the
+    /// diverging step, and the last good state is kept, as [`GpuSolver::step`]).
+    pub fn advance(&mut self, max_steps: u64, t_end: f64, acc: &mut BatchTotals) -> Result<(), SimError> {
+        let start = std::time::Instant::now();
+        let r = self.advance_inner(max_steps, t_end, acc);
+        acc.wall_s += start.elapsed().as_secs_f64();
+        r
+    }
+
+    fn advance_inner(&mut self, max_steps: u64, t_end: f64, acc: &mut BatchTotals) -> Result<(), SimError> {
+        let mut left = max_steps;
+        while left > 0 && self.t < t_end {
+            let n = left.min(MAX_BATCH as u64) as usize;
+            let b = self.run_batch(n, t_end)?;
+            if b.stop == gpu_types::stop::FAILED {
+                if n == 1 {
+                    return Err(self.fail(&b)?);
+                }
+                // Back to the start of the batch, then one step per batch up to the diverging one.
+                self.restore()?;
+                for _ in 0..n {
+                    let b1 = self.run_batch(1, t_end)?;
+                    if b1.stop == gpu_types::stop::FAILED {
+                        return Err(self.fail(&b1)?);
+                    }
+                    self.account(&b1, acc);
+                    left -= u64::from(b1.steps);
+                    if self.t >= t_end {
+                        break;
+                    }
+                }
+                continue;
+            }
+            self.account(&b, acc);
+            left -= u64::from(b.steps).max(1).min(left);
+        }
+        Ok(())
+    }
+
+    /// Restores the last good state after a failed one-step batch and builds its error.
+    fn fail(&mut self, b: &BatchState) -> Result<SimError, SimError> {
+        self.restore()?;
+        if b.fail_status & gpu_types::status::DT_COLLAPSED != 0 {
+            let s: Vec<StepState> = self.read_slot(Slot::Step, 1)?;
+            let limit = dt_limit(s.first().map_or(4, |s| s.limit));
+            return Ok(diverged(
                 self.steps,
                 self.t,
                 String::from("(time step)"),
-                format!("time step collapsed to {:.3e} s (limited by {limit:?}), below dt_min", s.dt),
+                format!("time step collapsed to {:.3e} s (limited by {limit:?}), below dt_min", b.fail_dt),
             ));
         }
-        let dt = s.dt;
-        let t_next = self.t + dt as f64;
-        // Boundaries at tⁿ⁺¹ (host f64 clock, as the CPU's move_boundaries).
-        self.upload_objects(t_next)?;
-        let mut enc = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("perfuse.step_second") });
-        self.encode(&mut enc, passes::STEP_SECOND);
-        let s = self.submit_and_read_step(enc)?;
-        if s.status & (gpu_types::status::NONFINITE_LIQUID | gpu_types::status::NONFINITE_SOLID) != 0 {
-            let particle = if s.status & gpu_types::status::NONFINITE_LIQUID != 0 {
-                format!("liquid #{}", s.bad_liquid)
-            } else {
-                format!("solid #{}", s.bad_solid)
-            };
-            let (step, t) = (self.steps + 1, t_next);
-            self.restore()?;
-            return Err(diverged(
-                step,
-                t,
-                particle,
-                format!("non-finite or runaway state (limit {:.3e} m/s)", self.params.max_speed),
-            ));
-        }
-        self.t = t_next;
-        self.steps += 1;
-        Ok(StepInfo { t: self.t, dt, limit, broken_bonds: u64::from(s.broken_ends) / 2 })
+        let particle = if b.fail_status & gpu_types::status::NONFINITE_LIQUID != 0 {
+            format!("liquid #{}", b.bad_liquid)
+        } else {
+            format!("solid #{}", b.bad_solid)
+        };
+        Ok(diverged(
+            self.steps + 1,
+            self.t + b.fail_dt as f64,
+            particle,
+            format!("non-finite or runaway state (limit {:.3e} m/s)", self.params.max_speed),
+        ))
     }
 
-    /// Copies the backups back and re-places boundaries and grids at the kept clock.
+    /// One predictor–corrector step (SPEC §5.1–5.2): a batch of one. On divergence the last good state
+    /// is restored.
+    pub fn step(&mut self) -> Result<StepInfo, SimError> {
+        let b = self.run_batch(1, f64::INFINITY)?;
+        if b.stop == gpu_types::stop::FAILED || b.steps == 0 {
+            return Err(self.fail(&b)?);
+        }
+        let mut acc = BatchTotals::default();
+        self.account(&b, &mut acc);
+        Ok(StepInfo { t: self.t, dt: b.dt[0], limit: dt_limit(b.limit[0]), broken_bonds: acc.broken_bonds })
+    }
+
+    /// Accumulated GPU time per pass family [s] (timestamp queries on every [`TIMED_EVERY`]th batch,
+    /// scaled to all steps taken), or `None` without timestamp queries.
+    pub fn pass_times(&self) -> Option<Vec<(String, f64)>> {
+        let timer = self.timer.as_ref()?;
+        let scale = if timer.timed_steps > 0 { self.steps as f64 / timer.timed_steps as f64 } else { 0.0 };
+        Some(timer.totals.iter().map(|(k, v)| (k.to_string(), v * scale)).collect())
+    }
+
+    /// Copies the backups (state and object table) back, resets the GPU clock to the host's copy and
+    /// re-places boundaries and grids.
     fn restore(&mut self) -> Result<(), GpuError> {
         let mut enc =
             self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("perfuse.restore") });
         self.buffers.encode_backup(&mut enc, true);
         self.ctx.queue.submit([enc.finish()]);
-        self.upload_objects(self.t)?;
+        self.upload_clock(self.clock)?;
         self.run_stages(passes::PLACE_AND_BIN)
     }
 
@@ -411,6 +702,7 @@ impl GpuSolver {
                     self.ctx.queue.write_buffer(self.buffer(Slot::BoundaryPos0)?, 0, bytemuck::cast_slice(&p0));
                 }
                 self.upload_objects(self.t)?;
+                self.upload_motions()?;
                 self.run_stages(passes::PLACE_AND_BIN)?;
             }
             Command::SetGravity(g) => {
@@ -431,6 +723,7 @@ impl GpuSolver {
             }
             Command::SetTime(t) => {
                 self.t = *t;
+                self.upload_clock(split_pair(*t))?;
                 self.upload_objects(*t)?;
                 self.run_stages(passes::PLACE_AND_BIN)?;
             }
@@ -545,6 +838,116 @@ fn objects_at(
             }
         })
         .collect()
+}
+
+/// The motion table of batch.wgsl: each object's rest shape (simulation coordinates, after any
+/// `SetBoundaryMotion` shift), pressure mode and motion parameters (z zeroed in 2-D, as `objects_at`).
+fn motion_table(
+    params: &Params,
+    objects: &[BoundaryObject],
+    shapes: &[ObjectGeom],
+    modes: &[ObjectPressure],
+) -> Vec<MotionGpu> {
+    use crate::scenario::Motion;
+    let three = params.dim.n() == 3;
+    let z = |a: [f64; 3]| [a[0] as f32, a[1] as f32, if three { a[2] as f32 } else { 0.0 }, 0.0];
+    objects
+        .iter()
+        .zip(shapes)
+        .enumerate()
+        .map(|(k, (o, g))| {
+            let m = modes.get(k).copied().unwrap_or(ObjectPressure { density: -1.0, pressure: 0.0 });
+            let (vec, times, motion) = match &o.motion {
+                Motion::Static => ([0.0; 4], [0.0; 4], 0),
+                Motion::Translate { velocity, start, stop } => {
+                    let (s, e) = (split_pair(*start), split_pair(stop.unwrap_or(1e30).min(1e30)));
+                    (z(*velocity), [s[0], s[1], e[0], e[1]], 1)
+                }
+                Motion::Oscillate { amplitude, frequency, phase } => {
+                    let w = 2.0 * std::f64::consts::PI * frequency;
+                    (z(*amplitude), [w as f32, *phase as f32, 0.0, 0.0], 2)
+                }
+            };
+            MotionGpu {
+                rest_a: v4(g.a, 0.0),
+                rest_b: v4(g.b, 0.0),
+                vec,
+                times,
+                density: m.density,
+                pressure: m.pressure,
+                kind: g.kind,
+                motion,
+            }
+        })
+        .collect()
+}
+
+/// CPU twin of batch.wgsl's `motion_eval`: displacement and velocity of motion `m` at the clock pair
+/// `t` (hi, lo), in the same f32 operations. The CPU solver keeps evaluating `scenario::motion_at` in
+/// f64 (its results are unchanged); the two agree to f32 rounding (tests/gpu_advance.rs).
+pub fn motion_twin(m: &MotionGpu, t: [f32; 2]) -> (Vec3, Vec3) {
+    let diff = |a: [f32; 2], b: [f32; 2]| (a[0] - b[0]) + (a[1] - b[1]);
+    let vec = Vec3::new(m.vec[0], m.vec[1], m.vec[2]);
+    if t[0] < 0.0 || (t[0] == 0.0 && t[1] < 0.0) {
+        return (Vec3::ZERO, Vec3::ZERO);
+    }
+    match m.motion {
+        1 => {
+            let (start, stop) = ([m.times[0], m.times[1]], [m.times[2], m.times[3]]);
+            let to_stop = diff(t, stop);
+            let moved = if to_stop > 0.0 { diff(stop, start) } else { diff(t, start) }.max(0.0);
+            let v = if diff(t, start) >= 0.0 && to_stop < 0.0 { vec } else { Vec3::ZERO };
+            (vec * moved, v)
+        }
+        2 => {
+            let (w, phase) = (m.times[0], m.times[1]);
+            let th = w * (t[0] + t[1]) + phase;
+            (vec * (th.sin() - phase.sin()), vec * (w * th.cos()))
+        }
+        _ => (Vec3::ZERO, Vec3::ZERO),
+    }
+}
+
+/// The motion table entry of `o` (tests: the twin against `motion_at`).
+pub fn motion_entry(params: &Params, o: &BoundaryObject) -> MotionGpu {
+    let shapes = object_shapes(params, std::slice::from_ref(o));
+    motion_table(params, std::slice::from_ref(o), &shapes, &[]).first().copied().unwrap_or_default()
+}
+
+/// `t` as the f32 clock pair of batch.wgsl.
+pub fn clock_pair(t: f64) -> [f32; 2] {
+    split_pair(t)
+}
+
+impl PassTimer {
+    fn new(ctx: &GpuContext) -> PassTimer {
+        let query_set = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("perfuse.pass_timer"),
+            ty: wgpu::QueryType::Timestamp,
+            count: MAX_QUERIES,
+        });
+        let size = 8 * MAX_QUERIES as u64;
+        let resolve = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("perfuse.pass_timer_resolve"),
+            size,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("perfuse.pass_timer_readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        PassTimer {
+            query_set,
+            resolve,
+            staging,
+            period_ns: ctx.queue.get_timestamp_period() as f64,
+            totals: BTreeMap::new(),
+            timed_steps: 0,
+        }
+    }
 }
 
 /// One pipeline per entry point, with its explicit layout and bind group(s).

@@ -222,6 +222,23 @@ pub const INTEGRATE_CHECK_LIQUID: PassSpec =
 pub const INTEGRATE_CHECK_SOLID: PassSpec =
     pass("integrate_check_solid", "integrate", &[Params, Step, SolidPos, SolidVel, SolidDens], Dispatch::Solid);
 
+pub const BATCH_BEGIN: PassSpec = PassSpec {
+    entry: "batch_begin",
+    family: "batch",
+    workgroup_size: 1,
+    slots: &[Batch, IndirectArgs],
+    dispatch: Dispatch::One,
+};
+pub const BATCH_MOTION: PassSpec = PassSpec {
+    entry: "batch_motion",
+    family: "batch",
+    workgroup_size: 1,
+    slots: &[Params, Step, Objects, Batch, Motions, IndirectArgs],
+    dispatch: Dispatch::One,
+};
+pub const BATCH_END: PassSpec =
+    PassSpec { entry: "batch_end", family: "batch", workgroup_size: 1, slots: &[Step, Batch], dispatch: Dispatch::One };
+
 /// Every entry point (pipelines are created for each; tests check each against naga).
 pub const ALL_PASSES: &[PassSpec] = &[
     GRID_CLEAR,
@@ -251,6 +268,9 @@ pub const ALL_PASSES: &[PassSpec] = &[
     FRACTURE_APPLY,
     INTEGRATE_CHECK_LIQUID,
     INTEGRATE_CHECK_SOLID,
+    BATCH_BEGIN,
+    BATCH_MOTION,
+    BATCH_END,
 ];
 
 /// A set binned by the grid passes.

@@ -13,6 +13,7 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
     ("integrate", include_str!("../../../shaders/integrate.wgsl")),
     ("dt", include_str!("../../../shaders/dt.wgsl")),
     ("fracture", include_str!("../../../shaders/fracture.wgsl")),
+    ("batch", include_str!("../../../shaders/batch.wgsl")),
 ];
 
 /// Why a shader could not be resolved.

@@ -1,0 +1,226 @@
+//! Batched GPU stepping (`GpuSolver::advance`: up to 64 steps per submission, one readback, clock and
+//! boundary motions on the GPU) against the CPU solver stepped one step at a time: a descending
+//! (Translate) and an oscillating tool in the 3-D perfused block, and the periodic 2-D Poiseuille
+//! channel; divergence inside a batch; determinism. Figures are printed (`--nocapture`).
+
+mod common;
+
+use common::gpu::gpu_test;
+use common::scenes::{perfused_block, perfused_block_oscillating, poiseuille_small};
+use glam::Vec3;
+use perfuse::scenario::{Scenario, generate};
+use perfuse::sim::cpu::CpuSolver;
+use perfuse::sim::gpu::{BatchTotals, GpuContext, GpuSolver};
+use perfuse::sim::params::Params;
+use perfuse::sim::{Command, SimError};
+
+fn max_vec_diff(a: &[Vec3], b: &[Vec3]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).map(|(x, y)| (*x - *y).length()).fold(0.0, f32::max)
+}
+
+fn solvers(ctx: GpuContext, sc: &Scenario, edit: impl Fn(&mut Params)) -> (CpuSolver, GpuSolver) {
+    let g = generate(sc);
+    let mut p = Params::new(sc, &g);
+    edit(&mut p);
+    let cpu = CpuSolver::new(p.clone(), &g).expect("CPU solver");
+    let gpu = GpuSolver::from_cpu(ctx, &cpu).expect("GPU solver");
+    (cpu, gpu)
+}
+
+/// `n` steps: GPU in batches (`advance`), CPU one by one; positions within 10⁻³ h (the whole-step
+/// tolerance of gpu_vs_cpu.rs), clocks within 10⁻⁶ relative, same bonds and the same step count.
+fn advance_matches(name: &str, sc: Scenario, n: u64) {
+    gpu_test(name, |ctx| {
+        let (mut cpu, mut gpu) = solvers(ctx, &sc, |_| {});
+        let mut acc = BatchTotals::default();
+        let t0 = std::time::Instant::now();
+        gpu.advance(n, f64::INFINITY, &mut acc).expect("GPU advance");
+        let gpu_secs = t0.elapsed().as_secs_f64();
+        let (mut dt_min, mut dt_max) = (f32::INFINITY, 0.0f32);
+        for _ in 0..n {
+            let info = cpu.step().expect("CPU step");
+            dt_min = dt_min.min(info.dt);
+            dt_max = dt_max.max(info.dt);
+        }
+        let (g, c) = (gpu.read_state().expect("readback"), cpu.read_state());
+        let h = cpu.params.k_liquid.h;
+        let d_l = max_vec_diff(&g.liquid.pos, &c.liquid.pos);
+        let d_s = max_vec_diff(&g.solid.pos, &c.solid.pos);
+        let d_b = max_vec_diff(&g.boundary.pos, &c.boundary.pos);
+        eprintln!(
+            "{name}: {n} steps, t gpu {:.6e} cpu {:.6e}; max |Δx| liquid {:.3e} h, solid {:.3e} h, boundary {d_b:.3e} m; \
+             dt gpu [{:.4e}, {:.4e}] cpu [{dt_min:.4e}, {dt_max:.4e}]; gpu {:.2} ms/step",
+            g.t,
+            c.t,
+            d_l / h,
+            d_s / h,
+            acc.dt_min,
+            acc.dt_max,
+            1e3 * gpu_secs / n as f64
+        );
+        assert_eq!(acc.steps, n);
+        assert_eq!(g.steps, c.steps);
+        assert!((g.t - c.t).abs() <= 1e-6 * c.t);
+        assert!(((acc.dt_min - dt_min) / dt_min).abs() <= 1e-5 && ((acc.dt_max - dt_max) / dt_max).abs() <= 1e-5);
+        assert!(d_l <= 1e-3 * h && d_s <= 1e-3 * h, "positions diverged");
+        assert!(d_b <= 1e-3 * h, "boundary poses diverged");
+        assert_eq!(g.solid_extra.bond_lists, c.solid_extra.bond_lists);
+    });
+}
+
+#[test]
+fn advance_translate_tool_matches_cpu() {
+    advance_matches("advance_translate_tool_matches_cpu", perfused_block(), 300);
+}
+
+#[test]
+fn advance_oscillate_tool_matches_cpu() {
+    advance_matches("advance_oscillate_tool_matches_cpu", perfused_block_oscillating(), 300);
+}
+
+#[test]
+fn advance_periodic_2d_matches_cpu() {
+    advance_matches("advance_periodic_2d_matches_cpu", poiseuille_small(), 300);
+}
+
+/// `advance` stops at the first step whose end time reaches t_end, as a CPU loop `while t < t_end`.
+#[test]
+fn advance_stops_at_t_end_like_cpu() {
+    gpu_test("advance_stops_at_t_end_like_cpu", |ctx| {
+        let (mut cpu, mut gpu) = solvers(ctx, &perfused_block(), |_| {});
+        let t_end = 1.0e-3;
+        let mut acc = BatchTotals::default();
+        gpu.advance(u64::MAX, t_end, &mut acc).unwrap();
+        while cpu.st.t < t_end {
+            cpu.step().unwrap();
+        }
+        eprintln!(
+            "t_end {t_end:e}: gpu {} steps t = {:.6e}, cpu {} steps t = {:.6e}",
+            gpu.steps(),
+            gpu.time(),
+            cpu.st.steps,
+            cpu.st.t
+        );
+        assert_eq!(gpu.steps(), cpu.st.steps);
+        assert!((gpu.time() - cpu.st.t).abs() <= 1e-6 * cpu.st.t);
+    });
+}
+
+/// A run made to diverge (the runaway-speed limit lowered so the check trips after ~100 steps) reports
+/// the same step from inside a 64-step GPU batch as the CPU, and keeps the last good state.
+#[test]
+fn diverging_batch_reports_cpu_step_and_keeps_last_good_state() {
+    gpu_test("diverging_batch_reports_cpu_step_and_keeps_last_good_state", |ctx| {
+        // Pick the limit halfway between the largest speed after 99 and after 100 steps (CPU).
+        let sc = perfused_block();
+        // strong gravity: the top speed grows steadily, so the crossing step is clear-cut
+        let gravity = Command::SetGravity([0.0, 0.0, -3000.0]);
+        let mut probe = CpuSolver::new(Params::new(&sc, &generate(&sc)), &generate(&sc)).unwrap();
+        probe.apply(&gravity).unwrap();
+        let vmax = |s: &CpuSolver| s.st.liquid.v.iter().chain(&s.st.solid.v).map(|v| v.length()).fold(0.0f32, f32::max);
+        let mut speeds = Vec::new();
+        for _ in 0..140 {
+            probe.step().unwrap();
+            speeds.push(vmax(&probe));
+        }
+        // the step k ≥ 100 where the running maximum grows most (relatively): a clear crossing
+        let mut run = speeds[..100].iter().copied().fold(0.0f32, f32::max);
+        let mut pick = (0, 0.0f32, 0.0f32);
+        for (k, v) in speeds.iter().enumerate().skip(100) {
+            let jump = (*v - run) / run;
+            if jump > pick.2 {
+                pick = (k, 0.5 * (run + v), jump);
+            }
+            run = run.max(*v);
+        }
+        let (k, limit, jump) = pick;
+        assert!(jump > 1e-4, "the top speed must grow after step 100 (jump {jump:e})");
+        let (mut cpu, mut gpu) = solvers(ctx, &sc, |p| p.max_speed = limit);
+        cpu.apply(&gravity).unwrap();
+        gpu.apply(&gravity).unwrap();
+        let cpu_err = loop {
+            if let Err(e) = cpu.step() {
+                break e;
+            }
+        };
+        let mut acc = BatchTotals::default();
+        let gpu_err = gpu.advance(300, f64::INFINITY, &mut acc).unwrap_err();
+        eprintln!("limit {limit:.4e} m/s (step {}): cpu {cpu_err}\n gpu {gpu_err}", k + 1);
+        let (SimError::Diverged { step: sc_, t: tc, .. }, SimError::Diverged { step: sg, t: tg, .. }) =
+            (&cpu_err, &gpu_err)
+        else {
+            panic!("both must diverge: {cpu_err} / {gpu_err}");
+        };
+        assert_eq!(sc_, sg, "diverging step");
+        assert!((tc - tg).abs() <= 1e-6 * tc);
+        assert_eq!(acc.steps, sg - 1, "the good steps before the diverging one are counted");
+        let (g, c) = (gpu.read_state().unwrap(), cpu.read_state());
+        let h = cpu.params.k_liquid.h;
+        assert_eq!(g.steps, c.steps);
+        let d = max_vec_diff(&g.liquid.pos, &c.liquid.pos).max(max_vec_diff(&g.solid.pos, &c.solid.pos));
+        eprintln!("last good state: {} steps, max |Δx| {:.3e} h", g.steps, d / h);
+        assert!(d <= 1e-3 * h);
+        // The kept state steps on (it is the last good one, not garbage).
+        gpu.step().unwrap_err();
+    });
+}
+
+/// Two batched runs give bit-identical states, and a batched run equals the same steps taken one by one.
+#[test]
+fn advance_is_deterministic_and_independent_of_batching() {
+    gpu_test("advance_is_deterministic_and_independent_of_batching", |ctx| {
+        let sc = perfused_block();
+        let mut hashes = Vec::new();
+        for batched in [true, true, false] {
+            let (_, mut gpu) = solvers(ctx.clone(), &sc, |_| {});
+            if batched {
+                gpu.advance(150, f64::INFINITY, &mut BatchTotals::default()).unwrap();
+            } else {
+                for _ in 0..150 {
+                    gpu.step().unwrap();
+                }
+            }
+            hashes.push(gpu.read_state().unwrap().hash());
+        }
+        eprintln!("hashes {:016x} {:016x} {:016x}", hashes[0], hashes[1], hashes[2]);
+        assert_eq!(hashes[0], hashes[1]);
+        assert_eq!(hashes[0], hashes[2]);
+    });
+}
+
+/// The CPU twin of batch.wgsl's motion evaluation agrees with `scenario::motion_at` (f64) to f32
+/// rounding, including the t < 0 → rest rule, a Translate window and an Oscillate phase.
+#[test]
+fn motion_twin_matches_motion_at() {
+    use perfuse::scenario::{Motion, motion_at};
+    use perfuse::sim::gpu::{clock_pair, motion_entry, motion_twin};
+    let sc = perfused_block();
+    let g = generate(&sc);
+    let params = Params::new(&sc, &g);
+    let mut tool = g.objects[1].clone();
+    let motions = [
+        Motion::Translate { velocity: [0.01, -0.02, -0.1], start: 0.002, stop: Some(0.0075) },
+        Motion::Translate { velocity: [0.0, 0.0, -0.1], start: 0.0, stop: None },
+        Motion::Oscillate { amplitude: [0.0, 0.0005, -0.0006], frequency: 100.0, phase: 0.3 },
+    ];
+    let mut worst = 0.0f64;
+    for m in motions {
+        tool.motion = m.clone();
+        let entry = motion_entry(&params, &tool);
+        for k in -20..400 {
+            let t = k as f64 * 2.5e-5 + 1.0e-7;
+            let (d, v) = motion_at(&m, t);
+            let (dg, vg) = motion_twin(&entry, clock_pair(t));
+            let dd = (0..3).map(|a| (d[a] - dg[a] as f64).abs()).fold(0.0, f64::max);
+            let dv = (0..3).map(|a| (v[a] - vg[a] as f64).abs()).fold(0.0, f64::max);
+            // velocity scale: |velocity|, or ω·|amplitude|
+            let amp = entry.vec.iter().map(|x| x.abs() as f64).fold(0.0, f64::max);
+            let vmax = if entry.motion == 2 { amp * entry.times[0] as f64 } else { amp };
+            // displacement to 1e-9 m (f32 of ~1e-3 m), velocity to 1e-5 of its scale
+            assert!(dd <= 1e-9 && dv <= 1e-5 * vmax, "{m:?} at t = {t:e}: |Δd| {dd:e}, |Δv| {dv:e}");
+            worst = worst.max(dd);
+        }
+    }
+    eprintln!("motion twin vs motion_at: max |Δd| = {worst:.3e} m");
+}
