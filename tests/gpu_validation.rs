@@ -3,8 +3,8 @@
 //! same tolerances as the CPU suite (tests/validation.rs). They run on the device of
 //! `GpuContext::new` (lavapipe here) with batched stepping (`Simulation::advance`); reports and plots go
 //! to `target/test-artifacts/gpu-validation/<case>/`. Serialised with each other (one device at a
-//! time). `PERFUSE_SKIP_GPU_TESTS=1` skips them loudly, as the other GPU tests. Poiseuille (44 s on
-//! time and run with `cargo test --release --test gpu_validation -- --ignored` (all pass there).
+//! time). `PERFUSE_SKIP_GPU_TESTS=1` skips them loudly, as the other GPU tests. On lavapipe with 2
+//! cores they take about 44 s (Poiseuille), 127 s (Brinkman) and 162 s (hydrostatic).
 
 use perfuse::analysis::validate::run_validation;
 use perfuse::sim::BackendKind;
