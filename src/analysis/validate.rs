@@ -164,8 +164,8 @@ fn load(text: &str, file: &str, overrides: &[String]) -> Result<Scenario, Valida
 }
 
 /// Overrides that re-grid the 2-D channel of the Poiseuille/Brinkman files: `ny` rows across 2H,
-/// `nx` columns, 3 wall rows per side.
-fn channel_overrides(ny: usize, nx: usize, solid: bool) -> Vec<String> {
+/// `nx` columns, 3 wall rows per side (`solid`: also the Brinkman skeleton and its fixed region).
+pub fn channel_overrides(ny: usize, nx: usize, solid: bool) -> Vec<String> {
     let h = 0.01f64;
     let dx = 2.0 * h / ny as f64;
     let lx = nx as f64 * dx;

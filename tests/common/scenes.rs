@@ -38,24 +38,10 @@ pub fn perfused_block_oscillating() -> Scenario {
     Scenario::from_str_named(&text, "gpu_test_block_osc.ron").expect("test scene is valid")
 }
 
-/// The 2-D start-up Poiseuille channel (periodic in x) re-gridded to 20 rows × 10 columns (Δx = 1 mm),
-/// as `analysis::validate`'s channel overrides.
+/// The 2-D start-up Poiseuille channel (periodic in x) re-gridded to 20 rows × 10 columns (Δx = 1 mm)
+/// by `analysis::validate`'s own channel overrides.
 pub fn poiseuille_small() -> Scenario {
-    let (h, dx) = (0.01f64, 0.001f64);
-    let lx = 10.0 * dx;
-    let wall = h + 3.0 * dx;
-    let ov = vec![
-        format!("numerics.dx_liquid={dx}"),
-        format!("domain.min=[0.0, {}, 0.0]", -(wall + dx).max(0.0125)),
-        format!("domain.max=[{lx}, {}, 0.0]", (wall + dx).max(0.0125)),
-        format!("particles.0.max=[{lx}, {h}, 0.0]"),
-        format!("boundaries.0.shape.min=[0.0, {h}, 0.0]"),
-        format!("boundaries.0.shape.max=[{lx}, {wall}, 0.0]"),
-        format!("boundaries.0.spacing={dx}"),
-        format!("boundaries.1.shape.min=[0.0, {}, 0.0]", -wall),
-        format!("boundaries.1.shape.max=[{lx}, {}, 0.0]", -h),
-        format!("boundaries.1.spacing={dx}"),
-    ];
+    let ov = perfuse::analysis::validate::channel_overrides(20, 10, false);
     let text = include_str!("../../assets/scenarios/poiseuille.ron");
     Scenario::from_str_with_overrides(text, "assets/scenarios/poiseuille.ron", &ov).expect("test scene is valid")
 }
