@@ -16,6 +16,8 @@ struct Cli {
 
 #[derive(Clone, Copy, ValueEnum, Debug)]
 enum Backend {
+    /// The GPU when a hardware adapter exists (or PERFUSE_ADAPTER names one), else the CPU.
+    Auto,
     Cpu,
     Gpu,
 }
@@ -23,6 +25,15 @@ enum Backend {
 impl From<Backend> for BackendKind {
     fn from(b: Backend) -> BackendKind {
         match b {
+            Backend::Auto => {
+                let kind = if perfuse::sim::gpu::device::hardware_adapter_available() {
+                    BackendKind::Gpu
+                } else {
+                    BackendKind::Cpu
+                };
+                log::info!("--backend auto chose {kind:?}");
+                kind
+            }
             Backend::Cpu => BackendKind::Cpu,
             Backend::Gpu => BackendKind::Gpu,
         }
@@ -35,7 +46,7 @@ enum Cmd {
     Run {
         /// Scenario file (RON).
         scenario: PathBuf,
-        #[arg(long, value_enum, default_value = "cpu")]
+        #[arg(long, value_enum, default_value = "auto")]
         backend: Backend,
         /// Simulated time to stop at [s] (default: the scenario's duration).
         #[arg(long, conflicts_with = "steps")]
@@ -61,8 +72,8 @@ enum Cmd {
         /// Override scenario fields (with --scenario), as for `run`.
         #[arg(long = "set", value_name = "FIELD=VALUE")]
         set: Vec<String>,
-        /// Back-ends to measure.
-        #[arg(long, value_enum, value_delimiter = ',', default_value = "cpu")]
+        /// Back-ends to measure (side by side; a missing GPU is reported and skipped).
+        #[arg(long, value_enum, value_delimiter = ',', default_value = "cpu,gpu")]
         backends: Vec<Backend>,
         /// Minimum wall time per configuration [s].
         #[arg(long, default_value_t = 5.0)]
@@ -81,7 +92,7 @@ enum Cmd {
         quick: bool,
         #[arg(long, default_value = "out/validate")]
         out: PathBuf,
-        #[arg(long, value_enum, default_value = "cpu")]
+        #[arg(long, value_enum, default_value = "auto")]
         backend: Backend,
     },
 }
@@ -145,8 +156,16 @@ fn real_main() -> Result<()> {
             for sc in &scenarios {
                 for &b in &backends {
                     eprintln!("measuring {} on {:?}…", sc.name, b);
-                    let row = perfuse::bench::measure(sc, b.into(), seconds, 3, u64::MAX)
-                        .with_context(|| format!("benchmarking {}", sc.name))?;
+                    let row = match perfuse::bench::measure(sc, b.into(), seconds, 3, u64::MAX) {
+                        Ok(row) => row,
+                        Err(perfuse::bench::BenchError::Sim(perfuse::sim::SimError::Gpu(msg)))
+                            if backends.len() > 1 =>
+                        {
+                            eprintln!("skipping the GPU back-end: {msg}");
+                            continue;
+                        }
+                        Err(e) => return Err(anyhow::Error::new(e).context(format!("benchmarking {}", sc.name))),
+                    };
                     eprint!("{}", perfuse::bench::table(std::slice::from_ref(&row)));
                     rows.push(row);
                 }

@@ -82,6 +82,20 @@ pub fn create_instance() -> wgpu::Instance {
     })
 }
 
+/// Whether `--backend auto` should pick the GPU: a hardware adapter (not the software rasteriser) is
+/// present, or `PERFUSE_ADAPTER` names one explicitly. On a machine with only lavapipe the rayon solver
+/// is faster (README: Performance), so auto picks the CPU there.
+pub fn hardware_adapter_available() -> bool {
+    if std::env::var("PERFUSE_ADAPTER").is_ok_and(|v| !v.is_empty()) {
+        return true;
+    }
+    let instance = create_instance();
+    pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
+        .iter()
+        .map(|a| a.get_info())
+        .any(|i| i.backend != wgpu::Backend::Gl && i.device_type != wgpu::DeviceType::Cpu)
+}
+
 /// Rank of an adapter: lower is preferred (hardware first, then the Vulkan software adapter).
 fn preference(info: &wgpu::AdapterInfo) -> u32 {
     match info.device_type {
