@@ -12,7 +12,9 @@
 //! back-end produce bit-identical states (`State::hash`).
 
 pub mod analysis;
+pub mod app;
 pub mod bench;
 pub mod output;
+pub mod render;
 pub mod scenario;
 pub mod sim;

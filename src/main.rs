@@ -11,8 +11,29 @@ use std::path::PathBuf;
 #[command(name = "perfuse", version, about = "Biphasic SPH surgical simulator: a blood-perfused liver")]
 struct Cli {
     #[command(subcommand)]
-    command: Cmd,
+    command: Option<Cmd>,
+    /// Viewer (no subcommand): the scenario to open.
+    #[arg(long, default_value = DEFAULT_SCENARIO)]
+    scenario: PathBuf,
+    /// Viewer: where the simulation runs (auto: the GPU when it is a hardware one, else the CPU).
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: Backend,
+    /// Viewer: quit after this many frames.
+    #[arg(long)]
+    frames: Option<u64>,
+    /// Viewer: save the last frame (window contents) to this PNG.
+    #[arg(long)]
+    screenshot: Option<PathBuf>,
+    /// Viewer: window size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x800")]
+    size: String,
+    /// Viewer: start paused.
+    #[arg(long)]
+    paused: bool,
 }
+
+/// The scenario `cargo run --release` opens.
+const DEFAULT_SCENARIO: &str = "assets/scenarios/liver.ron";
 
 #[derive(Clone, Copy, ValueEnum, Debug)]
 enum Backend {
@@ -82,6 +103,46 @@ enum Cmd {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Render a scenario headless at simulated time T to a PNG (offscreen, the viewer's renderer).
+    Render {
+        /// Scenario file (RON).
+        scenario: PathBuf,
+        /// Simulated time to render [s] (after the scenario's relaxation).
+        #[arg(long, default_value_t = 0.0)]
+        at: f64,
+        #[arg(long, default_value = "frame.png")]
+        out: PathBuf,
+        /// Image size, WIDTHxHEIGHT.
+        #[arg(long, default_value = "1280x720")]
+        size: String,
+        #[arg(long, value_enum, default_value = "auto")]
+        backend: Backend,
+        /// Colour the tissue by: tissue, stress, liquid, broken.
+        #[arg(long, default_value = "tissue")]
+        field: String,
+        /// Draw blood as spheres instead of the screen-space fluid surface.
+        #[arg(long)]
+        no_fluid: bool,
+        #[arg(long = "set", value_name = "FIELD=VALUE")]
+        set: Vec<String>,
+    },
+    /// Scripted hemorrhage through the closed-loop cardiovascular model: vitals.csv and PNG plots.
+    Vitals {
+        /// Fraction of the blood volume removed (0..0.6).
+        #[arg(long, default_value_t = 0.35)]
+        loss: f64,
+        /// Bleeding starts at this time [s] (after a settled baseline).
+        #[arg(long, default_value_t = 10.0)]
+        start: f64,
+        /// Bleeding lasts this long [s] (constant rate).
+        #[arg(long, default_value_t = 600.0)]
+        over: f64,
+        /// Total simulated time [s].
+        #[arg(long, default_value_t = 660.0)]
+        duration: f64,
+        #[arg(long, default_value = "out/vitals")]
+        out: PathBuf,
+    },
     /// Run the validation cases against their analytic references: report.json and PNG plots.
     Validate {
         /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever).
@@ -105,9 +166,147 @@ fn main() {
     }
 }
 
+/// `WIDTHxHEIGHT` → (width, height).
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) =
+        s.split_once(['x', 'X']).with_context(|| format!("--size `{s}`: write it as WIDTHxHEIGHT, e.g. 1280x720"))?;
+    let w: u32 = w.trim().parse().with_context(|| format!("--size `{s}`: width is not a number"))?;
+    let h: u32 = h.trim().parse().with_context(|| format!("--size `{s}`: height is not a number"))?;
+    if !(16..=8192).contains(&w) || !(16..=8192).contains(&h) {
+        bail!("--size `{s}`: each side must be 16..8192 pixels");
+    }
+    Ok((w, h))
+}
+
+fn parse_field(s: &str) -> Result<perfuse::render::FieldMode> {
+    use perfuse::render::FieldMode;
+    Ok(match s {
+        "tissue" | "plain" => FieldMode::Plain,
+        "stress" => FieldMode::Stress,
+        "liquid" => FieldMode::LiquidFraction,
+        "broken" => FieldMode::BrokenBonds,
+        other => bail!("--field `{other}`: choose tissue, stress, liquid or broken"),
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn render_command(
+    scenario: &std::path::Path,
+    at: f64,
+    out: &std::path::Path,
+    size: &str,
+    backend: Backend,
+    field: &str,
+    no_fluid: bool,
+    set: &[String],
+) -> Result<()> {
+    use perfuse::render::{Renderer, snapshot};
+    use perfuse::sim::Simulation;
+    use perfuse::sim::gpu::GpuContext;
+    let size = parse_size(size)?;
+    let field = parse_field(field)?;
+    if !(at.is_finite() && at >= 0.0) {
+        bail!("--at must be a time ≥ 0 s, got {at}");
+    }
+    let sc = Scenario::load_with_overrides(scenario, set)?;
+    let ctx = GpuContext::new().context("rendering needs a GPU adapter (or the lavapipe software adapter)")?;
+    let kind: BackendKind = backend.into();
+    let mut sim = Simulation::with_gpu(&sc, (kind == BackendKind::Gpu).then(|| ctx.clone()))?;
+    let bar = perfuse::output::progress_bar();
+    sim.relax(|_| bar.tick())?;
+    sim.advance_until(at, u64::MAX, |t| bar.set_message(format!("t = {t:.4} s")))?;
+    bar.finish_and_clear();
+    let mut renderer = Renderer::new(&ctx.device, &ctx.queue)?;
+    renderer.settings.field = field;
+    renderer.settings.field_scale = field.default_scale();
+    renderer.settings.fluid = !no_fluid;
+    let camera = snapshot::default_camera(&sim);
+    let img = snapshot::render_image(&sim, &ctx, &mut renderer, &camera, size)?;
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    img.save(out).with_context(|| format!("writing {}", out.display()))?;
+    println!("{}: t = {:.4} s rendered to {} ({}×{})", sc.name, sim.time(), out.display(), size.0, size.1);
+    Ok(())
+}
+
+/// The viewer on `cli.scenario`.
+fn viewer(cli: &Cli) -> Result<()> {
+    let path = if cli.scenario.is_relative() && !cli.scenario.exists() {
+        // `cargo run` from elsewhere: the shipped scenarios live beside the manifest.
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(&cli.scenario)
+    } else {
+        cli.scenario.clone()
+    };
+    let scenario = Scenario::load(&path)?;
+    let gpu_simulation = match cli.backend {
+        Backend::Auto => None,
+        Backend::Cpu => Some(false),
+        Backend::Gpu => Some(true),
+    };
+    if cli.frames == Some(0) {
+        bail!("--frames must be at least 1");
+    }
+    let opts = perfuse::app::ViewerOptions {
+        scenario,
+        scenario_path: path,
+        gpu_simulation,
+        frames: cli.frames,
+        screenshot: cli.screenshot.clone(),
+        size: parse_size(&cli.size)?,
+        paused: cli.paused,
+    };
+    let report = perfuse::app::run(opts)?;
+    println!(
+        "viewer: {} frames, {:.1} fps; simulation {} steps, {:.1} steps/s",
+        report.frames, report.fps, report.sim_steps, report.steps_per_s
+    );
+    if let Some(p) = &report.screenshot {
+        if !p.exists() {
+            bail!("the screenshot {} was not written", p.display());
+        }
+        println!("screenshot: {}", p.display());
+    }
+    Ok(())
+}
+
 fn real_main() -> Result<()> {
     let cli = Cli::parse();
-    match cli.command {
+    let Some(command) = cli.command else { return viewer(&cli) };
+    match command {
+        Cmd::Vitals { loss, start, over, duration, out } => {
+            use perfuse::analysis::hemorrhage;
+            if !(0.0..=0.6).contains(&loss) {
+                bail!("--loss {loss}: give a fraction of the blood volume in 0..0.6 (0.35 = ATLS class III)");
+            }
+            for (name, v) in [("--start", start), ("--over", over), ("--duration", duration)] {
+                if !(v.is_finite() && (0.0..=86_400.0).contains(&v)) {
+                    bail!("{name} {v}: give seconds in 0..86400");
+                }
+            }
+            let samples = hemorrhage::scripted_hemorrhage(Default::default(), loss, start, over, duration, 0.5)?;
+            hemorrhage::write_outputs(&samples, &out).map_err(anyhow::Error::msg)?;
+            if let Some(last) = samples.last() {
+                let v = &last.vitals;
+                println!(
+                    "t = {:.0} s: {:.0}% lost ({:.0} mL), MAP {:.0} mmHg, {:.0}/{:.0} mmHg, HR {:.0} bpm, CO {:.2} L/min, class {}",
+                    last.t_s,
+                    100.0 * v.blood_lost_fraction,
+                    v.blood_lost_ml,
+                    v.map_mmhg,
+                    v.systolic_mmhg,
+                    v.diastolic_mmhg,
+                    v.hr_bpm,
+                    v.cardiac_output_l_min,
+                    v.shock_class
+                );
+            }
+            println!("wrote vitals.csv, vitals.png, hepatic_inflow.png to {}", out.display());
+            Ok(())
+        }
+        Cmd::Render { scenario, at, out, size, backend, field, no_fluid, set } => {
+            render_command(&scenario, at, &out, &size, backend, &field, no_fluid, &set)
+        }
         Cmd::Run { scenario, backend, until, steps, out, set } => {
             let sc = Scenario::load_with_overrides(&scenario, &set)?;
             if let Some(t) = until

@@ -2,5 +2,6 @@
 //! their report and plots (`validate`), and PNG charts (`plot`).
 
 pub mod analytic;
+pub mod hemorrhage;
 pub mod plot;
 pub mod validate;

@@ -1,7 +1,7 @@
 //! Particle generators: lattices in boxes and balls, perfused blocks, boundary objects, and the
 //! particle masses of SPEC §1.2 / D-2 (m = n₀ρ₀/S_W) and §4.1 (boundary equivalent masses).
 
-use super::{Generator, InitialVelocity, Motion, Phase, PressureMode, Region, Scenario, V3};
+use super::{Generator, InitialVelocity, Motion, Phase, PressureMode, Region, Scenario, Tool, V3};
 use crate::sim::kernels::{Dim, lattice_poly6_sum};
 
 /// Flags of a solid particle (bit set), mirrored in `shaders/common.wgsl` (`SOLID_*`).
@@ -29,6 +29,8 @@ pub struct BoundaryObject {
     pub motion: Motion,
     pub pressure: PressureMode,
     pub spacing: f64,
+    /// Set when the user drives this object (viewer tools).
+    pub tool: Option<Tool>,
 }
 
 /// Everything a back-end needs to build its initial state, plus the derived per-phase sizes.
@@ -158,7 +160,8 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
                 Phase::Liquid => g.fraction_liquid = *fraction,
                 Phase::Solid => g.fraction_solid = *fraction,
             },
-            Generator::PerfusedBlock { solid_fraction, liquid_fraction, .. } => {
+            Generator::PerfusedBlock { solid_fraction, liquid_fraction, .. }
+            | Generator::PerfusedMesh { solid_fraction, liquid_fraction, .. } => {
                 g.fraction_solid = *solid_fraction;
                 g.fraction_liquid = *liquid_fraction;
             }
@@ -203,6 +206,23 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
                 push(Phase::Solid, &r, &None, &mut g);
                 push(Phase::Liquid, &r, &None, &mut g);
             }
+            Generator::PerfusedMesh { file, placement, .. } => {
+                // Validation loaded this mesh already; an error here leaves the generator empty.
+                if let Ok(mesh) = super::mesh::load_mesh(&s.resolve(file)) {
+                    let mesh = mesh.transformed(placement);
+                    for (phase, dx, mass) in
+                        [(Phase::Solid, g.dx_solid, g.mass_solid), (Phase::Liquid, g.dx_liquid, g.mass_liquid)]
+                    {
+                        let pts = super::mesh::sample_interior(&mesh, dx, [0.5 * dx; 3]);
+                        let set = if phase == Phase::Solid { &mut g.solid } else { &mut g.liquid };
+                        for p in pts {
+                            set.vel.push([0.0; 3]);
+                            set.pos.push(p);
+                            set.mass.push(mass);
+                        }
+                    }
+                }
+            }
         }
     }
     let membrane = match &s.membrane {
@@ -243,6 +263,7 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             motion: b.motion.clone(),
             pressure: b.pressure.clone(),
             spacing: sp,
+            tool: b.tool.clone(),
         });
     }
     g

@@ -5,6 +5,8 @@
 //! Loading never panics on user input: every failure is a [`ScenarioError`].
 
 mod generate;
+pub mod liver;
+pub mod mesh;
 mod schema;
 mod validate;
 
@@ -68,6 +70,7 @@ impl Scenario {
         for spec in overrides {
             scenario = scenario.with_override(spec)?;
         }
+        scenario.base_dir = std::path::Path::new(origin).parent().map(|d| d.to_path_buf());
         validate::validate(&scenario).map_err(|p| p.into_error(origin))?;
         Ok(scenario)
     }

@@ -53,6 +53,20 @@ pub struct Scenario {
     /// Frames and probes written by `perfuse run`.
     #[serde(default)]
     pub output: Output,
+    /// Folder of the scenario file: relative mesh paths are resolved against it (set on load).
+    #[serde(skip)]
+    pub base_dir: Option<std::path::PathBuf>,
+}
+
+impl Scenario {
+    /// The path of a mesh file named in the scenario (relative to the scenario file's folder).
+    pub fn resolve(&self, file: &str) -> std::path::PathBuf {
+        let p = std::path::Path::new(file);
+        match &self.base_dir {
+            Some(dir) if p.is_relative() => dir.join(p),
+            _ => p.to_path_buf(),
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -290,6 +304,16 @@ pub enum Generator {
     },
     /// A perfused block: a solid lattice and an interpenetrating liquid lattice filling the same box.
     PerfusedBlock { min: V3, max: V3, solid_fraction: f64, liquid_fraction: f64 },
+    /// A perfused organ: both lattices filling a closed surface mesh (Wavefront OBJ or STL; a path
+    /// relative to the scenario file), scaled and placed by `placement` (3-D only). The shipped liver
+    /// is `../meshes/liver.obj` (generator: `cargo run --release --example gen_liver`).
+    PerfusedMesh {
+        file: String,
+        #[serde(default)]
+        placement: super::mesh::Placement,
+        solid_fraction: f64,
+        liquid_fraction: f64,
+    },
 }
 
 /// How a boundary object moves (SPEC §4.1: analytic x_b(t), v_b(t)).
@@ -343,6 +367,37 @@ pub struct Boundary {
     pub motion: Motion,
     #[serde(default = "d_mirror")]
     pub pressure: PressureMode,
+    /// Marks the object as a tool the viewer's user drives with the mouse (a kinematic body, SPEC §4.1).
+    #[serde(default)]
+    pub tool: Option<Tool>,
+}
+
+/// What a user-driven boundary object is: the viewer maps mouse input to `MoveObject` /
+/// `PlaceObject` + `SetBoundaryMotion` commands on it (scalpel and indenter follow the cursor at up to
+/// `max_speed`; a projectile is fired along the view ray at `max_speed`).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Tool {
+    pub kind: ToolKind,
+    /// Largest tool speed [m/s]; keep it below the sound speeds' tenth (numerics.sound_speed_*).
+    pub max_speed: f64,
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+pub enum ToolKind {
+    Scalpel,
+    Indenter,
+    Projectile,
+}
+
+impl ToolKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            ToolKind::Scalpel => "scalpel",
+            ToolKind::Indenter => "indenter",
+            ToolKind::Projectile => "projectile",
+        }
+    }
 }
 fn d_static() -> Motion {
     Motion::Static

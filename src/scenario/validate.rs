@@ -134,7 +134,7 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
                 Phase::Liquid => has_liquid = true,
                 Phase::Solid => has_solid = true,
             },
-            Generator::PerfusedBlock { .. } => {
+            Generator::PerfusedBlock { .. } | Generator::PerfusedMesh { .. } => {
                 has_liquid = true;
                 has_solid = true;
             }
@@ -322,33 +322,48 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             }
             Generator::PerfusedBlock { min, max, solid_fraction, liquid_fraction } => {
                 check_box(&f, *min, *max, d, s)?;
-                Check::range(
-                    &format!("{f}.solid_fraction"),
-                    *solid_fraction,
-                    1e-3,
-                    1.0,
-                    "a volume fraction, e.g. 0.6",
-                )?;
-                Check::range(
-                    &format!("{f}.liquid_fraction"),
-                    *liquid_fraction,
-                    1e-3,
-                    1.0,
-                    "a volume fraction, e.g. 0.4",
-                )?;
-                if solid_fraction + liquid_fraction > 1.0 + 1e-9 {
-                    return Err(Check::fail(
-                        format!("{f}.liquid_fraction"),
-                        format!("nˢ + nˡ = {} exceeds 1 (saturation (2.1))", solid_fraction + liquid_fraction),
-                        "make the fractions sum to at most 1",
-                    ));
-                }
+                check_perfused_fractions(&f, *solid_fraction, *liquid_fraction)?;
                 let r = super::Region::Box { min: *min, max: *max };
                 (
                     lattice_count(&r, phase_dx(Phase::Solid, dx_l, dx_s), d)
                         + lattice_count(&r, phase_dx(Phase::Liquid, dx_l, dx_s), d),
                     vec![(Phase::Solid, *solid_fraction), (Phase::Liquid, *liquid_fraction)],
                 )
+            }
+            Generator::PerfusedMesh { file, placement, solid_fraction, liquid_fraction } => {
+                if d != 3 {
+                    return Err(Check::fail(
+                        f.to_string(),
+                        "a mesh generator needs a 3-D scenario",
+                        "set dimensions: 3, or use Box/PerfusedBlock in 2-D",
+                    ));
+                }
+                check_perfused_fractions(&f, *solid_fraction, *liquid_fraction)?;
+                let path = s.resolve(file);
+                let fail = |e: super::mesh::MeshError| {
+                    Check::fail(format!("{f}.file"), e.to_string(), "fix or replace the mesh file named above")
+                };
+                placement.check(&path.display().to_string()).map_err(&fail)?;
+                let (mesh, _) = super::mesh::load_and_validate(&path).map_err(&fail)?;
+                let mesh = mesh.transformed(placement);
+                let (lo, hi) = mesh.bounds();
+                for a in 0..3 {
+                    if lo[a] < s.domain.min[a] || hi[a] > s.domain.max[a] {
+                        return Err(Check::fail(
+                            format!("{f}.placement"),
+                            format!(
+                                "the placed mesh spans {:?}..{:?}, outside the domain {:?}..{:?}",
+                                lo, hi, s.domain.min, s.domain.max
+                            ),
+                            "move it with placement.translate, shrink it with placement.scale/fit_size, or enlarge the domain",
+                        ));
+                    }
+                }
+                let mut count = 0;
+                for dx in [phase_dx(Phase::Solid, dx_l, dx_s), phase_dx(Phase::Liquid, dx_l, dx_s)] {
+                    count += super::mesh::try_sample_interior(&mesh, dx, [0.5 * dx; 3]).map_err(&fail)?.len();
+                }
+                (count, vec![(Phase::Solid, *solid_fraction), (Phase::Liquid, *liquid_fraction)])
             }
         };
         if count == 0 {
@@ -412,6 +427,16 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             Check::positive(&format!("{f}.pressure.density"), *density, "kg/m³")?;
             Check::finite(&format!("{f}.pressure.pressure"), *pressure)?;
         }
+        if let Some(tool) = &b.tool {
+            Check::positive(&format!("{f}.tool.max_speed"), tool.max_speed, "m/s")?;
+            if tool.max_speed > 100.0 {
+                return Err(Check::fail(
+                    format!("{f}.tool.max_speed"),
+                    format!("{} m/s is beyond any surgical tool", tool.max_speed),
+                    "give at most 100 m/s (a projectile); a scalpel moves at ~0.01–0.1 m/s",
+                ));
+            }
+        }
     }
     for (i, r) in s.fixed_regions.iter().enumerate() {
         check_region(&format!("fixed_regions[{i}]"), r)?;
@@ -469,6 +494,20 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
     Ok(())
 }
 
+/// nˢ and nˡ of a perfused generator: each a volume fraction, together at most saturation (2.1).
+fn check_perfused_fractions(f: &str, solid: f64, liquid: f64) -> Result<(), Problem> {
+    Check::range(&format!("{f}.solid_fraction"), solid, 1e-3, 1.0, "a volume fraction, e.g. 0.6")?;
+    Check::range(&format!("{f}.liquid_fraction"), liquid, 1e-3, 1.0, "a volume fraction, e.g. 0.4")?;
+    if solid + liquid > 1.0 + 1e-9 {
+        return Err(Check::fail(
+            format!("{f}.liquid_fraction"),
+            format!("nˢ + nˡ = {} exceeds 1 (saturation (2.1))", solid + liquid),
+            "make the fractions sum to at most 1",
+        ));
+    }
+    Ok(())
+}
+
 fn min_fraction(s: &Scenario, want: Phase) -> Option<f64> {
     s.particles
         .iter()
@@ -476,7 +515,8 @@ fn min_fraction(s: &Scenario, want: Phase) -> Option<f64> {
             Generator::Box { phase, fraction, .. } | Generator::Sphere { phase, fraction, .. } if *phase == want => {
                 Some(*fraction)
             }
-            Generator::PerfusedBlock { solid_fraction, liquid_fraction, .. } => {
+            Generator::PerfusedBlock { solid_fraction, liquid_fraction, .. }
+            | Generator::PerfusedMesh { solid_fraction, liquid_fraction, .. } => {
                 Some(if want == Phase::Solid { *solid_fraction } else { *liquid_fraction })
             }
             _ => None,

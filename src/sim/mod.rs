@@ -5,7 +5,9 @@
 //! ([`Simulation::read_state`]). A diverging run (non-finite values, runaway velocity, collapsing Δt)
 //! returns [`SimError::Diverged`] and keeps the last good state.
 
+pub mod cardio;
 pub mod cpu;
+pub mod frame;
 pub mod gpu;
 pub mod kernels;
 pub mod params;
@@ -77,6 +79,65 @@ pub enum Command {
     SetDamping { damping: f64, gravity_solid_only: bool },
     /// Set the simulation clock [s] (boundary motions are evaluated at max(t, 0)).
     SetTime(f64),
+    /// Teleport object `object` so that its centre (box centre, sphere centre) is at `position`
+    /// (scenario coordinates [m]) and hold it there (parking a tool, loading a projectile).
+    PlaceObject { object: usize, position: V3 },
+    /// Move object `object` in a straight line towards `target` (its centre, scenario coordinates [m])
+    /// at `speed` [m/s], stopping there: a `Translate` motion from the current pose, so a tool driven
+    /// by the mouse is a kinematic body with a bounded, known velocity (SPEC §4.1).
+    MoveObject { object: usize, target: V3, speed: f64 },
+}
+
+/// Where a boundary object is now (scenario coordinates), for drawing and for tool input.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectPose {
+    pub name: String,
+    /// The object's shape at its current position.
+    pub shape: crate::scenario::Region,
+    /// Centre of the shape (box centre or sphere centre) [m].
+    pub centre: V3,
+    pub velocity: V3,
+    pub tool: Option<crate::scenario::Tool>,
+}
+
+/// Shift of the rest positions that keeps an object in place when its motion changes from one whose
+/// displacement is `d_now` to one whose displacement is `d_new` at the same time.
+pub(crate) fn reanchor_shift(d_now: V3, d_new: V3) -> glam::Vec3 {
+    glam::Vec3::new((d_now[0] - d_new[0]) as f32, (d_now[1] - d_new[1]) as f32, (d_now[2] - d_new[2]) as f32)
+}
+
+/// The pose of `object` (rest shape `geom` in simulation coordinates) at time `t`.
+pub(crate) fn object_pose(
+    params: &Params,
+    object: &crate::scenario::BoundaryObject,
+    geom: &cpu::forces::ObjectGeom,
+    t: f64,
+) -> ObjectPose {
+    let (d, v) = crate::scenario::motion_at(&object.motion, t);
+    let two = params.dim.n() == 2;
+    let o = params.origin;
+    let world = |p: glam::Vec3| {
+        let z = if two { o[2] } else { p.z as f64 + d[2] + o[2] };
+        [p.x as f64 + d[0] + o[0], p.y as f64 + d[1] + o[1], z]
+    };
+    let (shape, centre) = if geom.kind == 0 {
+        let (a, b) = (world(geom.a), world(geom.b));
+        let c = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0];
+        (crate::scenario::Region::Box { min: a, max: b }, c)
+    } else {
+        let c = world(geom.a);
+        (crate::scenario::Region::Sphere { centre: c, radius: geom.b.x as f64 }, c)
+    };
+    ObjectPose { name: object.name.clone(), shape, centre, velocity: v, tool: object.tool.clone() }
+}
+
+/// Shift (simulation coordinates) that puts `pose`'s centre at `position`; errors on non-finite input.
+pub(crate) fn centre_shift(params: &Params, pose: &ObjectPose, position: V3) -> Result<glam::Vec3, SimError> {
+    if !position.iter().all(|x| x.is_finite()) {
+        return Err(SimError::BadCommand(format!("object position {position:?} is not finite")));
+    }
+    let z = if params.dim.n() == 2 { 0.0 } else { (position[2] - pose.centre[2]) as f32 };
+    Ok(glam::Vec3::new((position[0] - pose.centre[0]) as f32, (position[1] - pose.centre[1]) as f32, z))
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -133,12 +194,28 @@ pub struct Simulation {
 
 impl Simulation {
     pub fn new(scenario: &Scenario, backend: BackendKind) -> Result<Simulation, SimError> {
+        Self::build(scenario, backend, None)
+    }
+
+    /// Like [`Simulation::new`], with the GPU back-end on an existing device (the viewer shares its
+    /// device between simulation and renderer). `gpu = None` selects the CPU back-end.
+    pub fn with_gpu(scenario: &Scenario, gpu: Option<gpu::GpuContext>) -> Result<Simulation, SimError> {
+        match gpu {
+            Some(ctx) => Self::build(scenario, BackendKind::Gpu, Some(ctx)),
+            None => Self::build(scenario, BackendKind::Cpu, None),
+        }
+    }
+
+    fn build(scenario: &Scenario, backend: BackendKind, ctx: Option<gpu::GpuContext>) -> Result<Simulation, SimError> {
         scenario.validate("(scenario)")?;
         let generated = crate::scenario::generate(scenario);
         let params = Params::new(scenario, &generated);
-        let engine = match backend {
-            BackendKind::Cpu => Engine::Cpu(Box::new(cpu::CpuSolver::new(params, &generated)?)),
-            BackendKind::Gpu => Engine::Gpu(Box::new(gpu::GpuSolver::new(params, &generated)?)),
+        let engine = match (backend, ctx) {
+            (BackendKind::Cpu, _) => Engine::Cpu(Box::new(cpu::CpuSolver::new(params, &generated)?)),
+            (BackendKind::Gpu, None) => Engine::Gpu(Box::new(gpu::GpuSolver::new(params, &generated)?)),
+            (BackendKind::Gpu, Some(ctx)) => {
+                Engine::Gpu(Box::new(gpu::GpuSolver::with_context(ctx, params, &generated)?))
+            }
         };
         Ok(Simulation {
             engine,
@@ -281,9 +358,83 @@ impl Simulation {
     }
 
     pub fn apply(&mut self, cmd: &Command) -> Result<(), SimError> {
+        if let Command::MoveObject { object, target, speed } = cmd {
+            return self.apply(&self.move_command(*object, *target, *speed)?);
+        }
         match &mut self.engine {
             Engine::Cpu(c) => c.apply(cmd),
             Engine::Gpu(g) => g.apply(cmd),
+        }
+    }
+
+    /// `MoveObject` as the `SetBoundaryMotion` it stands for: translate at `speed` towards `target`
+    /// from now until arrival (static when already there).
+    fn move_command(&self, object: usize, target: V3, speed: f64) -> Result<Command, SimError> {
+        if !(speed.is_finite() && speed > 0.0) {
+            return Err(SimError::BadCommand(format!("MoveObject speed {speed} m/s must be finite and > 0")));
+        }
+        if !target.iter().all(|x| x.is_finite()) {
+            return Err(SimError::BadCommand(format!("MoveObject target {target:?} is not finite")));
+        }
+        let poses = self.object_poses();
+        let pose = poses.get(object).ok_or_else(|| SimError::BadCommand(format!("no boundary object #{object}")))?;
+        let three = self.params().dim.n() == 3;
+        let mut delta = [target[0] - pose.centre[0], target[1] - pose.centre[1], target[2] - pose.centre[2]];
+        if !three {
+            delta[2] = 0.0;
+        }
+        let dist = (delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2]).sqrt();
+        let t = self.time();
+        // Below a thousandth of Δx the object stays where it is.
+        if dist <= 1e-3 * f64::from(self.params().k_solid.h.min(self.params().k_liquid.h)) {
+            return Ok(Command::SetBoundaryMotion { object, motion: Motion::Static });
+        }
+        let velocity = [delta[0] / dist * speed, delta[1] / dist * speed, delta[2] / dist * speed];
+        // Motions are evaluated at max(t, 0); during relaxation (t < 0) the move starts at 0.
+        let start = t.max(0.0);
+        Ok(Command::SetBoundaryMotion {
+            object,
+            motion: Motion::Translate { velocity, start, stop: Some(start + dist / speed) },
+        })
+    }
+
+    /// Particle counts (liquid, solid) a render buffer set must hold.
+    pub fn frame_counts(&self) -> (u32, u32) {
+        match &self.engine {
+            Engine::Cpu(c) => (c.st.liquid.x.len() as u32, c.st.solid.x.len() as u32),
+            Engine::Gpu(g) => g.particle_counts(),
+        }
+    }
+
+    /// Fills render buffer set `frame` with the current state and returns what goes with it. On the
+    /// GPU back-end `frame` must live on the simulation's device (see [`Simulation::with_gpu`]); the
+    /// copy is queued on the GPU, nothing is read back. `queue` is used by the CPU back-end.
+    pub fn publish(&self, frame: &frame::FrameBuffers, queue: &wgpu::Queue) -> Result<frame::FrameInfo, SimError> {
+        match &self.engine {
+            Engine::Cpu(c) => c.publish(frame, queue),
+            Engine::Gpu(g) => g.publish(frame).map_err(|e| SimError::Gpu(e.to_string()))?,
+        }
+        Ok(frame::FrameInfo {
+            t: self.time(),
+            steps: self.stats.steps,
+            objects: self.object_poses(),
+            origin: self.params().origin,
+        })
+    }
+
+    /// The GPU device the simulation runs on, if it runs on one.
+    pub fn gpu_context(&self) -> Option<&gpu::GpuContext> {
+        match &self.engine {
+            Engine::Cpu(_) => None,
+            Engine::Gpu(g) => Some(&g.ctx),
+        }
+    }
+
+    /// Current pose of every boundary object (scenario coordinates).
+    pub fn object_poses(&self) -> Vec<ObjectPose> {
+        match &self.engine {
+            Engine::Cpu(c) => c.object_poses(),
+            Engine::Gpu(g) => g.object_poses(),
         }
     }
 

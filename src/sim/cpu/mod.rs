@@ -17,7 +17,7 @@ pub mod solid;
 use super::params::Params;
 use super::state::{BoundaryState, PhaseState, SolidExtra, State};
 use super::{Command, SimError, StepInfo};
-use crate::scenario::{BoundaryObject, GeneratedParticles, SolidFlags, motion_at};
+use crate::scenario::{BoundaryObject, GeneratedParticles, Motion, SolidFlags, motion_at};
 use glam::{Mat3, Vec3};
 use grid::{CellList, Neighbours};
 
@@ -468,32 +468,89 @@ impl CpuSolver {
         }
     }
 
+    /// Re-anchors object `object` so that it continues from its current pose (plus `teleport`) under
+    /// `motion` (the rest positions x⁰ absorb the jump of the analytic displacement, SPEC §4.1).
+    fn set_object_motion(&mut self, object: usize, motion: &Motion, teleport: Vec3) -> Result<(), SimError> {
+        let o = self
+            .st
+            .objects
+            .get_mut(object)
+            .ok_or_else(|| SimError::BadCommand(format!("no boundary object #{object}")))?;
+        let (d_now, _) = motion_at(&o.motion, self.st.t);
+        let (d_new, _) = motion_at(motion, self.st.t);
+        o.motion = motion.clone();
+        let shift = crate::sim::reanchor_shift(d_now, d_new) + teleport;
+        let b = &mut self.st.boundary;
+        for i in 0..b.x0.len() {
+            if b.object[i] as usize == object {
+                b.x0[i] += shift;
+            }
+        }
+        self.shapes[object].a += shift;
+        if self.shapes[object].kind == 0 {
+            self.shapes[object].b += shift;
+        }
+        self.move_boundaries(self.st.t);
+        self.build_grids();
+        Ok(())
+    }
+
+    /// Shift that moves object `object`'s centre (box centre or sphere centre) to `position` (scenario
+    /// coordinates).
+    fn object_centre_shift(&self, object: usize, position: [f64; 3]) -> Result<Vec3, SimError> {
+        let o =
+            self.st.objects.get(object).ok_or_else(|| SimError::BadCommand(format!("no boundary object #{object}")))?;
+        let pose = crate::sim::object_pose(&self.params, o, &self.shapes[object], self.st.t);
+        crate::sim::centre_shift(&self.params, &pose, position)
+    }
+
+    /// Uploads the render data into `frame` in the GPU solver's layouts (`sim::frame`).
+    pub fn publish(&self, frame: &crate::sim::frame::FrameBuffers, queue: &wgpu::Queue) {
+        use crate::sim::gpu::gpu_types::{Mat3Gpu, StressGpu};
+        let l = &self.st.liquid;
+        let s = &self.st.solid;
+        if frame.n_liquid as usize != l.x.len() || frame.n_solid as usize != s.x.len() {
+            log::error!("publish: render buffers do not match the particle counts; frame skipped");
+            return;
+        }
+        let v4 =
+            |x: &[Vec3], w: &[f32]| -> Vec<[f32; 4]> { x.iter().zip(w).map(|(p, m)| [p.x, p.y, p.z, *m]).collect() };
+        if !l.x.is_empty() {
+            queue.write_buffer(&frame.liquid_pos, 0, bytemuck::cast_slice(&v4(&l.x, &l.m)));
+        }
+        if !s.x.is_empty() {
+            queue.write_buffer(&frame.solid_pos, 0, bytemuck::cast_slice(&v4(&s.x, &s.m)));
+            let dens: Vec<[f32; 4]> = (0..s.x.len()).map(|i| [s.rho[i], s.n_l[i], s.n_s[i], s.p[i]]).collect();
+            queue.write_buffer(&frame.solid_dens, 0, bytemuck::cast_slice(&dens));
+            let stress: Vec<StressGpu> = (0..s.x.len())
+                .map(|i| StressGpu { tau: Mat3Gpu::from(s.tau[i]), art: Mat3Gpu::from(s.art[i]) })
+                .collect();
+            queue.write_buffer(&frame.solid_stress, 0, bytemuck::cast_slice(&stress));
+            queue.write_buffer(&frame.bond_count, 0, bytemuck::cast_slice(&s.bond_count));
+            queue.write_buffer(&frame.bond_count0, 0, bytemuck::cast_slice(&s.bond_count0));
+            queue.write_buffer(&frame.solid_flags, 0, bytemuck::cast_slice(&s.flags));
+        }
+    }
+
+    /// Current pose of every boundary object (scenario coordinates).
+    pub fn object_poses(&self) -> Vec<crate::sim::ObjectPose> {
+        self.st
+            .objects
+            .iter()
+            .zip(&self.shapes)
+            .map(|(o, g)| crate::sim::object_pose(&self.params, o, g, self.st.t))
+            .collect()
+    }
+
     pub fn apply(&mut self, cmd: &Command) -> Result<(), SimError> {
         match cmd {
-            Command::SetBoundaryMotion { object, motion } => {
-                let o = self
-                    .st
-                    .objects
-                    .get_mut(*object)
-                    .ok_or_else(|| SimError::BadCommand(format!("no boundary object #{object}")))?;
-                // Re-anchor so the object continues from where it is now.
-                let (d_now, _) = motion_at(&o.motion, self.st.t);
-                let (d_new, _) = motion_at(motion, self.st.t);
-                o.motion = motion.clone();
-                let shift =
-                    Vec3::new((d_now[0] - d_new[0]) as f32, (d_now[1] - d_new[1]) as f32, (d_now[2] - d_new[2]) as f32);
-                let b = &mut self.st.boundary;
-                for i in 0..b.x0.len() {
-                    if b.object[i] as usize == *object {
-                        b.x0[i] += shift;
-                    }
-                }
-                self.shapes[*object].a += shift;
-                if self.shapes[*object].kind == 0 {
-                    self.shapes[*object].b += shift;
-                }
-                self.move_boundaries(self.st.t);
-                self.build_grids();
+            Command::SetBoundaryMotion { object, motion } => self.set_object_motion(*object, motion, Vec3::ZERO)?,
+            Command::PlaceObject { object, position } => {
+                let shift = self.object_centre_shift(*object, *position)?;
+                self.set_object_motion(*object, &Motion::Static, shift)?;
+            }
+            Command::MoveObject { .. } => {
+                return Err(SimError::BadCommand("MoveObject is resolved by `Simulation::apply`".into()));
             }
             Command::SetGravity(g) => {
                 let gv = Vec3::new(g[0] as f32, g[1] as f32, if self.params.dim.n() == 3 { g[2] as f32 } else { 0.0 });

@@ -36,7 +36,7 @@ use super::cpu::{CpuSolver, ObjectPressure};
 use super::params::Params;
 use super::state::{BoundaryState, PhaseState, SolidExtra, State};
 use super::{Command, DtLimit, SimError, StepInfo};
-use crate::scenario::{BoundaryObject, GeneratedParticles, motion_at};
+use crate::scenario::{BoundaryObject, GeneratedParticles, Motion, motion_at};
 use bindings::Slot;
 use buffers::SimBuffers;
 use bytemuck::Pod;
@@ -670,40 +670,101 @@ impl GpuSolver {
         self.run_stages(passes::PLACE_AND_BIN)
     }
 
+    /// Same as `CpuSolver::set_object_motion`: re-anchor, upload x⁰, the object and motion tables, and
+    /// re-place the boundary particles.
+    fn set_object_motion(&mut self, object: usize, motion: &Motion, teleport: Vec3) -> Result<(), SimError> {
+        let o = self
+            .objects
+            .get_mut(object)
+            .ok_or_else(|| SimError::BadCommand(format!("no boundary object #{object}")))?;
+        let (d_now, _) = motion_at(&o.motion, self.t);
+        let (d_new, _) = motion_at(motion, self.t);
+        o.motion = motion.clone();
+        let shift = crate::sim::reanchor_shift(d_now, d_new) + teleport;
+        for i in 0..self.boundary_x0.len() {
+            if self.boundary_object[i] as usize == object {
+                self.boundary_x0[i] += shift;
+            }
+        }
+        self.shapes[object].a += shift;
+        if self.shapes[object].kind == 0 {
+            self.shapes[object].b += shift;
+        }
+        let p0: Vec<[f32; 4]> =
+            self.boundary_x0.iter().zip(&self.boundary_object).map(|(x, o)| v4(*x, f32::from_bits(*o))).collect();
+        if !p0.is_empty() {
+            self.ctx.queue.write_buffer(self.buffer(Slot::BoundaryPos0)?, 0, bytemuck::cast_slice(&p0));
+        }
+        self.upload_objects(self.t)?;
+        self.upload_motions()?;
+        self.run_stages(passes::PLACE_AND_BIN)?;
+        Ok(())
+    }
+
+    /// (liquid, solid) particle counts.
+    pub fn particle_counts(&self) -> (u32, u32) {
+        (self.counts.liquid, self.counts.solid)
+    }
+
+    /// Copies the render data into `frame` (buffer-to-buffer on this device, no readback) and submits.
+    /// `frame` must have been created on this solver's device with its particle counts.
+    pub fn publish(&self, frame: &super::frame::FrameBuffers) -> Result<(), GpuError> {
+        use super::frame::{LIQUID_POS_BYTES, SOLID_DENS_BYTES, SOLID_POS_BYTES, SOLID_STRESS_BYTES, U32_BYTES};
+        let (nl, ns) = (u64::from(self.counts.liquid), u64::from(self.counts.solid));
+        if frame.n_liquid as u64 != nl || frame.n_solid as u64 != ns {
+            return Err(GpuError::Validation {
+                context: "publish".into(),
+                message: format!(
+                    "render buffers hold {} liquid / {} solid particles, the simulation {nl} / {ns}",
+                    frame.n_liquid, frame.n_solid
+                ),
+            });
+        }
+        let mut enc =
+            self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("perfuse.publish") });
+        let mut copy = |slot: Slot, dst: &wgpu::Buffer, bytes: u64| -> Result<(), GpuError> {
+            if bytes > 0 {
+                enc.copy_buffer_to_buffer(self.buffer(slot)?, 0, dst, 0, bytes);
+            }
+            Ok(())
+        };
+        copy(Slot::LiquidPos, &frame.liquid_pos, nl * LIQUID_POS_BYTES)?;
+        copy(Slot::SolidPos, &frame.solid_pos, ns * SOLID_POS_BYTES)?;
+        copy(Slot::SolidDens, &frame.solid_dens, ns * SOLID_DENS_BYTES)?;
+        copy(Slot::SolidStress, &frame.solid_stress, ns * SOLID_STRESS_BYTES)?;
+        copy(Slot::BondCount, &frame.bond_count, ns * U32_BYTES)?;
+        copy(Slot::SolidFlags, &frame.solid_flags, ns * U32_BYTES)?;
+        if ns > 0 {
+            self.ctx.queue.write_buffer(&frame.bond_count0, 0, bytemuck::cast_slice(&self.bond_count0));
+        }
+        self.ctx.queue.submit([enc.finish()]);
+        Ok(())
+    }
+
+    /// Current pose of every boundary object (scenario coordinates), from the host's motion table.
+    pub fn object_poses(&self) -> Vec<crate::sim::ObjectPose> {
+        self.objects
+            .iter()
+            .zip(&self.shapes)
+            .map(|(o, g)| crate::sim::object_pose(&self.params, o, g, self.t))
+            .collect()
+    }
+
     /// Applies a command (same semantics as `CpuSolver::apply`).
     pub fn apply(&mut self, cmd: &Command) -> Result<(), SimError> {
         match cmd {
-            Command::SetBoundaryMotion { object, motion } => {
+            Command::SetBoundaryMotion { object, motion } => self.set_object_motion(*object, motion, Vec3::ZERO)?,
+            Command::PlaceObject { object, position } => {
                 let o = self
                     .objects
-                    .get_mut(*object)
+                    .get(*object)
                     .ok_or_else(|| SimError::BadCommand(format!("no boundary object #{object}")))?;
-                let (d_now, _) = motion_at(&o.motion, self.t);
-                let (d_new, _) = motion_at(motion, self.t);
-                o.motion = motion.clone();
-                let shift =
-                    Vec3::new((d_now[0] - d_new[0]) as f32, (d_now[1] - d_new[1]) as f32, (d_now[2] - d_new[2]) as f32);
-                for i in 0..self.boundary_x0.len() {
-                    if self.boundary_object[i] as usize == *object {
-                        self.boundary_x0[i] += shift;
-                    }
-                }
-                self.shapes[*object].a += shift;
-                if self.shapes[*object].kind == 0 {
-                    self.shapes[*object].b += shift;
-                }
-                let p0: Vec<[f32; 4]> = self
-                    .boundary_x0
-                    .iter()
-                    .zip(&self.boundary_object)
-                    .map(|(x, o)| v4(*x, f32::from_bits(*o)))
-                    .collect();
-                if !p0.is_empty() {
-                    self.ctx.queue.write_buffer(self.buffer(Slot::BoundaryPos0)?, 0, bytemuck::cast_slice(&p0));
-                }
-                self.upload_objects(self.t)?;
-                self.upload_motions()?;
-                self.run_stages(passes::PLACE_AND_BIN)?;
+                let pose = crate::sim::object_pose(&self.params, o, &self.shapes[*object], self.t);
+                let shift = crate::sim::centre_shift(&self.params, &pose, *position)?;
+                self.set_object_motion(*object, &Motion::Static, shift)?;
+            }
+            Command::MoveObject { .. } => {
+                return Err(SimError::BadCommand("MoveObject is resolved by `Simulation::apply`".into()));
             }
             Command::SetGravity(g) => {
                 let gv = Vec3::new(g[0] as f32, g[1] as f32, if self.params.dim.n() == 3 { g[2] as f32 } else { 0.0 });

@@ -1,0 +1,228 @@
+//! The egui panels of the viewer: scenario picker, run control, tools, view settings, live
+//! parameters, statistics, screenshot, keyboard help and the divergence banner. Panels only read
+//! state and return [`UiAction`]s; `app` turns them into commands (data flows one way).
+
+use super::sim_thread::SimStatus;
+use crate::render::{FieldMode, RenderSettings};
+use crate::scenario::ToolKind;
+use std::path::PathBuf;
+
+/// What the user asked for this frame.
+#[derive(Clone, Debug, PartialEq)]
+pub enum UiAction {
+    Pause(bool),
+    Step,
+    Reset,
+    Load(PathBuf),
+    SelectTool(Option<ToolKind>),
+    Gravity(bool),
+    Screenshot,
+    ResetCamera,
+}
+
+/// Render-thread statistics.
+#[derive(Clone, Debug, Default)]
+pub struct FrameStats {
+    pub fps: f64,
+    /// CPU time to build and submit the last frame [ms].
+    pub frame_ms: f64,
+    pub size: (u32, u32),
+    pub adapter: String,
+}
+
+/// State the panels edit in place.
+pub struct UiState {
+    pub scenarios: Vec<PathBuf>,
+    pub current: PathBuf,
+    pub show_help: bool,
+    pub gravity_on: bool,
+    pub tools_available: Vec<ToolKind>,
+    pub selected_tool: Option<ToolKind>,
+    pub last_screenshot: Option<String>,
+}
+
+/// Every shipped scenario (assets/scenarios/*.ron), sorted.
+pub fn shipped_scenarios() -> Vec<PathBuf> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .map(|rd| {
+            rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|x| x == "ron")).collect()
+        })
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+fn file_name(p: &std::path::Path) -> String {
+    p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+}
+
+/// Draws the panels; returns the actions.
+pub fn panels(
+    ui: &mut egui::Ui,
+    state: &mut UiState,
+    status: &SimStatus,
+    frame: &FrameStats,
+    render: &mut RenderSettings,
+) -> Vec<UiAction> {
+    let mut actions = Vec::new();
+    if let Some(msg) = &status.diverged {
+        egui::Panel::top("diverged").show(ui, |ui| {
+            ui.colored_label(
+                egui::Color32::from_rgb(255, 90, 80),
+                format!("DIVERGED — paused with the last good state. {msg}. Reset (R) or load another scenario."),
+            );
+        });
+    }
+    egui::Panel::left("controls").resizable(true).default_size(300.0).show(ui, |ui| {
+        egui::ScrollArea::vertical().show(ui, |ui| {
+            ui.heading("Perfuse");
+            ui.label("Biphasic SPH: perfused tissue that deforms, tears and bleeds.");
+            ui.separator();
+
+            ui.strong("Scenario");
+            let mut chosen = None;
+            egui::ComboBox::from_id_salt("scenario").selected_text(file_name(&state.current)).show_ui(ui, |ui| {
+                for p in &state.scenarios {
+                    if ui.selectable_label(*p == state.current, file_name(p)).clicked() {
+                        chosen = Some(p.clone());
+                    }
+                }
+            });
+            if let Some(p) = chosen {
+                actions.push(UiAction::Load(p));
+            }
+            ui.horizontal(|ui| {
+                let label = if status.paused { "Run" } else { "Pause" };
+                if ui.button(label).on_hover_text("Space").clicked() {
+                    actions.push(UiAction::Pause(!status.paused));
+                }
+                if ui.add_enabled(status.paused, egui::Button::new("Step")).on_hover_text("S").clicked() {
+                    actions.push(UiAction::Step);
+                }
+                if ui.button("Reset").on_hover_text("R").clicked() {
+                    actions.push(UiAction::Reset);
+                }
+            });
+            ui.separator();
+
+            ui.strong("Tool");
+            if state.tools_available.is_empty() {
+                ui.label("This scenario has no tools.");
+            }
+            ui.horizontal_wrapped(|ui| {
+                if ui.selectable_label(state.selected_tool.is_none(), "none (0)").clicked() {
+                    actions.push(UiAction::SelectTool(None));
+                }
+                for (k, tool) in state.tools_available.iter().enumerate() {
+                    let on = state.selected_tool == Some(*tool);
+                    if ui.selectable_label(on, format!("{} ({})", tool.name(), k + 1)).clicked() {
+                        actions.push(UiAction::SelectTool(Some(*tool)));
+                    }
+                }
+            });
+            ui.label("Left-drag: move the tool · Shift+wheel or Q/E: lower/raise · projectile: click to fire");
+            ui.separator();
+
+            ui.strong("View");
+            let before = render.field;
+            egui::ComboBox::from_id_salt("field").selected_text(render.field.name()).show_ui(ui, |ui| {
+                for f in FieldMode::ALL {
+                    ui.selectable_value(&mut render.field, f, f.name());
+                }
+            });
+            if render.field != before {
+                render.field_scale = render.field.default_scale();
+            }
+            if render.field != FieldMode::Plain {
+                ui.add(egui::Slider::new(&mut render.field_scale, 1e-3..=1e5).logarithmic(true).text("full scale"));
+            }
+            ui.checkbox(&mut render.fluid, "blood as fluid surface (SSFR)");
+            ui.checkbox(&mut render.show_walls, "walls and plates");
+            ui.add(egui::Slider::new(&mut render.tissue_radius, 0.5..=2.0).text("tissue radius ×Δx/2"));
+            ui.add(egui::Slider::new(&mut render.blood_radius, 0.5..=2.5).text("blood radius ×Δx/2"));
+            ui.add(egui::Slider::new(&mut render.absorption, 10.0..=5000.0).logarithmic(true).text("absorption 1/m"));
+            if ui.button("Reset camera").on_hover_text("C").clicked() {
+                actions.push(UiAction::ResetCamera);
+            }
+            ui.separator();
+
+            ui.strong("Live parameters");
+            let mut g = state.gravity_on;
+            if ui.checkbox(&mut g, "gravity").changed() {
+                actions.push(UiAction::Gravity(g));
+            }
+            ui.separator();
+
+            ui.strong("Statistics");
+            egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
+                let row = |ui: &mut egui::Ui, k: &str, v: String| {
+                    ui.label(k);
+                    ui.label(v);
+                    ui.end_row();
+                };
+                row(ui, "scenario", status.scenario.clone());
+                row(ui, "back-end", status.backend.clone());
+                row(ui, "particles", format!("{} solid + {} liquid", status.n_solid, status.n_liquid));
+                row(ui, "sim time", format!("{:.5} s{}", status.t, if status.relaxing { " (relaxing)" } else { "" }));
+                row(ui, "steps", status.steps.to_string());
+                row(ui, "Δt", format!("{:.3e} s ({})", status.dt, status.dt_limit));
+                row(ui, "steps/s", format!("{:.1}", status.steps_per_s));
+                row(ui, "real-time factor", format!("{:.2e}", status.real_time_factor));
+                row(ui, "broken bonds", status.broken_bonds.to_string());
+                row(ui, "render", format!("{:.1} fps, {:.1} ms/frame", frame.fps, frame.frame_ms));
+                row(ui, "window", format!("{}×{}", frame.size.0, frame.size.1));
+                row(ui, "adapter", frame.adapter.clone());
+            });
+            if let Some(e) = &status.error {
+                ui.colored_label(egui::Color32::from_rgb(255, 170, 60), e);
+            }
+            ui.separator();
+            ui.horizontal(|ui| {
+                if ui.button("Screenshot").on_hover_text("P").clicked() {
+                    actions.push(UiAction::Screenshot);
+                }
+                if ui.button("Help (H)").clicked() {
+                    state.show_help = !state.show_help;
+                }
+            });
+            if let Some(s) = &state.last_screenshot {
+                ui.label(s);
+            }
+        });
+    });
+    if state.show_help {
+        let mut open = true;
+        egui::Window::new("Keyboard and mouse").open(&mut open).collapsible(false).show(ui.ctx(), |ui| {
+            egui::Grid::new("help").num_columns(2).show(ui, |ui| {
+                for (k, v) in HELP {
+                    ui.monospace(*k);
+                    ui.label(*v);
+                    ui.end_row();
+                }
+            });
+        });
+        state.show_help = open;
+    }
+    actions
+}
+
+/// The controls, shown by the help overlay and the README.
+pub const HELP: &[(&str, &str)] = &[
+    ("Right-drag", "orbit the camera"),
+    ("Middle-drag / Ctrl+right-drag", "pan"),
+    ("Wheel", "zoom"),
+    ("Left-drag", "move the selected tool (scalpel, indenter) on the working plane"),
+    ("Shift+wheel, Q / E", "lower / raise the tool's working plane"),
+    ("Left-click", "fire the projectile along the view ray (projectile selected)"),
+    ("0 1 2 3", "no tool / select tool 1–3"),
+    ("Space", "run / pause"),
+    ("S", "single step (paused)"),
+    ("R", "reset the scenario"),
+    ("F", "cycle the tissue colour field"),
+    ("B", "blood: fluid surface / spheres"),
+    ("C", "reset the camera"),
+    ("P", "screenshot (PNG)"),
+    ("H", "this help"),
+    ("Esc", "quit"),
+];

@@ -1,0 +1,166 @@
+//! Offscreen rendering on the software adapter (issue 5 §5): a small scene drawn through the
+//! viewer's renderer has blood pixels red where blood particles project, tissue where tissue is and
+//! background elsewhere; the screen-space fluid passes are checked on a synthetic blob (the filtered
+//! depth is smoother than the raw one, the thickness rises monotonically towards the blob's centre).
+//! PNGs are saved under `target/test-artifacts/` for a person to look at.
+
+mod common;
+
+use common::gpu::gpu_test;
+use glam::{Vec3, Vec4};
+use perfuse::render::offscreen::read_texture;
+use perfuse::render::{OrbitCamera, Renderer, snapshot};
+use perfuse::scenario::Scenario;
+use perfuse::sim::{BackendKind, Simulation};
+
+/// A tissue block on the left, a blood ball on the right, a floor below and an indenter above.
+const SCENE: &str = r#"
+Scenario(
+    name: "render_test",
+    dimensions: 3,
+    domain: Domain(min: (0.0, 0.0, 0.0), max: (0.012, 0.006, 0.007)),
+    gravity: (0.0, 0.0, -9.81),
+    liquid: Some(Liquid(density: 1000.0, viscosity: 0.01, sound_speed: Some(2.0))),
+    solid: Some(Solid(density: 1000.0, c10: 1000.0, c01: 100.0, k_s: 10000.0, n_sat: 0.5, k_sat: 1000.0, friction: 10000.0)),
+    numerics: Numerics(dx_liquid: Some(5.0e-4), dx_solid: Some(5.0e-4), h_over_dx: 1.3),
+    particles: [
+        Box(phase: Solid, min: (0.001, 0.001, 0.0015), max: (0.005, 0.005, 0.004), fraction: 0.6),
+        Sphere(phase: Liquid, centre: (0.009, 0.003, 0.0035), radius: 0.002, fraction: 1.0),
+    ],
+    boundaries: [
+        Boundary(name: "floor", shape: Box(min: (0.0, 0.0, 0.0), max: (0.012, 0.006, 0.0012))),
+        Boundary(name: "tool", shape: Sphere(centre: (0.003, 0.003, 0.0058), radius: 0.0008),
+                 tool: Some(Tool(kind: Indenter, max_speed: 0.1))),
+    ],
+    duration: 0.01,
+)
+"#;
+
+fn artifact(name: &str) -> std::path::PathBuf {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/test-artifacts");
+    std::fs::create_dir_all(&dir).expect("artifact dir");
+    dir.join(name)
+}
+
+/// Pixel of a scenario-coordinate point.
+fn project(cam: &OrbitCamera, size: (u32, u32), origin: [f64; 3], p: [f64; 3]) -> (u32, u32) {
+    let q = Vec3::new((p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32);
+    let clip: Vec4 = cam.proj(size.0 as f32 / size.1 as f32) * cam.view() * q.extend(1.0);
+    let (x, y) = (clip.x / clip.w, clip.y / clip.w);
+    (((x + 1.0) * 0.5 * size.0 as f32) as u32, ((1.0 - y) * 0.5 * size.1 as f32) as u32)
+}
+
+#[test]
+fn offscreen_frame_shows_blood_tissue_and_background() {
+    gpu_test("offscreen_frame_shows_blood_tissue_and_background", |ctx| {
+        let sc = Scenario::from_str_named(SCENE, "render_test.ron").expect("valid");
+        let sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+        let mut renderer = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+        let size = (480, 270);
+        let cam = OrbitCamera::fit(Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.012, 0.006, 0.007), false, Vec3::Z);
+        let img = snapshot::render_image(&sim, &ctx, &mut renderer, &cam, size).expect("render");
+        img.save(artifact("render_offscreen.png")).expect("png");
+        let origin = sim.params().origin;
+        let px = |p: [f64; 3]| {
+            let (x, y) = project(&cam, size, origin, p);
+            img.get_pixel(x.min(size.0 - 1), y.min(size.1 - 1)).0
+        };
+        // Blood: the ball's centre is red-dominant.
+        let b = px([0.009, 0.003, 0.0035]);
+        assert!(b[0] > 60 && b[0] as u32 > 3 * b[1] as u32 && b[0] as u32 > 3 * b[2] as u32, "blood pixel {b:?}");
+        // Tissue: the block's front-top region is the liver's red-brown (red above green and blue, not
+        // the blood's saturated red, not the background).
+        let t = px([0.003, 0.001, 0.0035]);
+        assert!(t[0] > t[1] && t[0] > t[2] && t[1] > 15, "tissue pixel {t:?}");
+        // Background: a corner far from everything is exactly the clear colour.
+        let bg = img.get_pixel(2, 2).0;
+        let bg2 = img.get_pixel(size.0 - 3, 2).0;
+        assert_eq!(bg, bg2, "background is uniform");
+        assert!(bg[0] < 110 && bg[2] >= bg[0], "background {bg:?}");
+        // Blood turned off: the same pixel shows plain spheres, still red.
+        renderer.settings.fluid = false;
+        let img2 = snapshot::render_image(&sim, &ctx, &mut renderer, &cam, size).expect("render");
+        img2.save(artifact("render_offscreen_spheres.png")).expect("png");
+        let (x, y) = project(&cam, size, origin, [0.009, 0.003, 0.0035]);
+        let b2 = img2.get_pixel(x, y).0;
+        assert!(b2[0] as u32 > 2 * b2[1] as u32, "sphere blood pixel {b2:?}");
+    });
+}
+
+/// A ball of blood alone, seen straight on.
+const BLOB: &str = r#"
+Scenario(
+    name: "blob",
+    dimensions: 3,
+    domain: Domain(min: (0.0, 0.0, 0.0), max: (0.01, 0.01, 0.01)),
+    liquid: Some(Liquid(density: 1000.0, viscosity: 0.01, sound_speed: Some(2.0))),
+    numerics: Numerics(dx_liquid: Some(4.0e-4), h_over_dx: 1.3),
+    particles: [ Sphere(phase: Liquid, centre: (0.005, 0.005, 0.005), radius: 0.0035, fraction: 1.0) ],
+    duration: 0.01,
+)
+"#;
+
+/// Σ|second difference| of a row of positive samples (roughness).
+fn roughness(row: &[f32]) -> f32 {
+    row.windows(3).map(|w| (w[0] - 2.0 * w[1] + w[2]).abs()).sum()
+}
+
+#[test]
+fn ssfr_passes_on_a_synthetic_blob() {
+    gpu_test("ssfr_passes_on_a_synthetic_blob", |ctx| {
+        let sc = Scenario::from_str_named(BLOB, "blob.ron").expect("valid");
+        let sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+        let mut renderer = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+        let size = (256, 256);
+        let o = sim.params().origin;
+        let c = Vec3::new((0.005 - o[0]) as f32, (0.005 - o[1]) as f32, (0.005 - o[2]) as f32);
+        let cam = OrbitCamera { target: c, yaw: 0.0, pitch: 0.0, distance: 0.015, ..OrbitCamera::default() };
+        let read = |r: &mut Renderer| -> (Vec<f32>, Vec<f32>, image::RgbaImage) {
+            let img = snapshot::render_image(&sim, &ctx, r, &cam, size).expect("render");
+            let (depth_tex, thick_tex) = r.fluid_textures().expect("targets exist");
+            let d = read_texture(&ctx.device, &ctx.queue, depth_tex, size, 4).expect("depth");
+            let t = read_texture(&ctx.device, &ctx.queue, thick_tex, size, 2).expect("thickness");
+            let d: Vec<f32> = bytemuck::cast_slice::<u8, f32>(&d).to_vec();
+            let t: Vec<f32> = t.chunks_exact(2).map(|b| half_to_f32(u16::from_le_bytes([b[0], b[1]]))).collect();
+            (d, t, img)
+        };
+        let (filtered, thickness, img) = read(&mut renderer);
+        img.save(artifact("ssfr_blob.png")).expect("png");
+        renderer.settings.filter_radius_px = 0.0;
+        let (raw, _, img_raw) = read(&mut renderer);
+        img_raw.save(artifact("ssfr_blob_unfiltered.png")).expect("png");
+        let w = size.0 as usize;
+        let mid = size.1 as usize / 2;
+        // The central third of the middle row is covered by blood in both.
+        let span = (w / 3)..(2 * w / 3);
+        let row = |v: &[f32]| v[mid * w..(mid + 1) * w][span.clone()].to_vec();
+        let (rf, rr) = (row(&filtered), row(&raw));
+        assert!(rf.iter().chain(rr.iter()).all(|d| *d > 0.0), "blob covers the middle");
+        let (sf, sr) = (roughness(&rf), roughness(&rr));
+        eprintln!("depth roughness: filtered {sf:.3e}, raw {sr:.3e}");
+        assert!(sf < 0.5 * sr, "filtered depth must be smoother: {sf} vs {sr}");
+        // Thickness: smoothed over ±3 px, it rises from the blob's edge to its centre.
+        let tr = &thickness[mid * w..(mid + 1) * w];
+        let first = tr.iter().position(|t| *t > 0.0).expect("thickness somewhere");
+        let smooth: Vec<f32> = (first + 3..w / 2).map(|i| tr[i - 3..=i + 3].iter().sum::<f32>() / 7.0).collect();
+        let drops = smooth.windows(2).filter(|p| p[1] < p[0] * 0.97).count();
+        eprintln!("thickness edge {:.2e} → centre {:.2e} m, {} drops", smooth[0], tr[w / 2], drops);
+        assert!(tr[w / 2] > 3.0 * smooth[0], "thicker at the centre than at the edge");
+        assert!(drops <= smooth.len() / 10, "thickness rises towards the centre ({drops} drops)");
+        // And the centre pixel is blood-red.
+        let p = img.get_pixel(size.0 / 2, size.1 / 2).0;
+        assert!(p[0] as u32 > 3 * p[1] as u32, "centre pixel {p:?}");
+    });
+}
+
+/// IEEE half → f32 (R16Float texels).
+fn half_to_f32(h: u16) -> f32 {
+    let s = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
+    let e = ((h >> 10) & 0x1f) as i32;
+    let m = (h & 0x3ff) as f32;
+    match e {
+        0 => s * m * 2f32.powi(-24),
+        31 => s * f32::INFINITY,
+        _ => s * (1.0 + m / 1024.0) * 2f32.powi(e - 15),
+    }
+}
