@@ -257,6 +257,8 @@ const JACOBI_SWEEPS: u32 = 6u;
 @group(0) @binding(37) var<storage, read_write> batch: BatchState;
 @group(0) @binding(38) var<storage, read_write> motions: array<MotionGpu>;
 @group(0) @binding(39) var<storage, read_write> indirect_args: array<u32>;
+// squared breaking length of each bond slot (layout of bond_table): max(R², (λ_c r₀)²)
+@group(0) @binding(40) var<storage, read_write> bond_limit: array<f32>;
 
 // ---- small helpers mirroring glam (same operation order) ----
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {

@@ -119,6 +119,11 @@ pub struct Solid {
     /// Interphase friction coefficient K̄ [Pa·s/m²], K = (1 − nˢ)K̄ (2.17).
     #[serde(default)]
     pub friction: f64,
+    /// Critical stretch λ_c of irreversible fracture (Alg. 2): a bond breaks beyond max(2h_s, λ_c r₀).
+    /// None: the thesis criterion, beyond 2h_s, which breaks bonds born near 2h_s at a few per cent
+    /// strain. Liver parenchyma fails at ≈ 30–50 % strain (λ_c ≈ 1.3–1.5).
+    #[serde(default)]
+    pub critical_stretch: Option<f64>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -115,6 +115,9 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
         Check::non_negative("solid.k_sat", m.k_sat, "give k_sat in Pa, e.g. 1e5")?;
         Check::range("solid.n_sat", m.n_sat, 1e-3, 1.0, "nˢ_sat is a volume fraction, e.g. 0.6")?;
         Check::non_negative("solid.friction", m.friction, "give K̄ in Pa·s/m², e.g. 1e6")?;
+        if let Some(lc) = m.critical_stretch {
+            Check::range("solid.critical_stretch", lc, 1.0, 10.0, "λ_c is r/r₀ at rupture, e.g. 1.3 (30 % strain)")?;
+        }
         if m.k_s + m.k_sat <= 0.0 {
             return Err(Check::fail(
                 "solid.k_s",

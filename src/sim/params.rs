@@ -72,6 +72,8 @@ pub struct Params {
     pub has_solid: bool,
     /// Some solid particle is not kinematic.
     pub solid_dynamic: bool,
+    /// Critical stretch λ_c of fracture (None: break beyond 2h_s, the thesis criterion).
+    pub critical_stretch: Option<f32>,
 }
 
 /// Uniform background grid (cells of edge ≥ the largest search radius).
@@ -218,6 +220,7 @@ impl Params {
             has_liquid,
             has_solid,
             solid_dynamic,
+            critical_stretch: s.solid.as_ref().and_then(|m| m.critical_stretch).map(|x| x as f32),
         }
     }
 

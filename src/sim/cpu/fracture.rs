@@ -26,17 +26,30 @@ pub fn fracture_build_bonds(p: &Params, s: &mut SolidSet, list: &CellList) {
     let cap = lists.iter().map(|l| l.len()).max().unwrap_or(0).max(1);
     s.bond_capacity = cap;
     s.bonds = vec![u32::MAX; n * cap];
+    s.bond_limit = vec![0.0; n * cap];
     s.bond_count = vec![0; n];
+    let radius2 = radius * radius;
+    let period = p.periodic_len();
     for (i, l) in lists.iter().enumerate() {
         s.bonds[i * cap..i * cap + l.len()].copy_from_slice(l);
         s.bond_count[i] = l.len() as u32;
+        for (k, &j) in l.iter().enumerate() {
+            // Thesis criterion: r > 2h_s breaks. A bond born near 2h_s would break at a few per cent
+            // strain (a lattice artefact); a critical stretch λ_c lets it reach λ_c r₀ first.
+            s.bond_limit[i * cap + k] = match p.critical_stretch {
+                Some(lc) => {
+                    let r0 = min_image(s.x[i] - s.x[j as usize], period).length() * lc;
+                    radius2.max(r0 * r0)
+                }
+                None => radius2,
+            };
+        }
     }
     s.bond_count0 = s.bond_count.clone();
 }
 
-/// Drops bonds stretched beyond 2h_s; returns how many bonds (pairs) broke this step.
+/// Drops bonds stretched beyond their breaking length (`bond_limit`); returns how many bonds (pairs) broke this step.
 pub fn fracture_apply(p: &Params, s: &mut SolidSet) -> u64 {
-    let radius2 = (2.0 * p.k_solid.h) * (2.0 * p.k_solid.h);
     let period = p.periodic_len();
     let cap = s.bond_capacity;
     let mut removed_ends = 0u64;
@@ -45,8 +58,10 @@ pub fn fracture_apply(p: &Params, s: &mut SolidSet) -> u64 {
         let mut keep = 0usize;
         for k in 0..n {
             let j = s.bonds[i * cap + k] as usize;
-            if min_image(s.x[i] - s.x[j], period).length_squared() <= radius2 {
+            let limit2 = s.bond_limit[i * cap + k];
+            if min_image(s.x[i] - s.x[j], period).length_squared() <= limit2 {
                 s.bonds[i * cap + keep] = j as u32;
+                s.bond_limit[i * cap + keep] = limit2;
                 keep += 1;
             } else {
                 removed_ends += 1;
@@ -54,6 +69,7 @@ pub fn fracture_apply(p: &Params, s: &mut SolidSet) -> u64 {
         }
         for k in keep..n {
             s.bonds[i * cap + k] = u32::MAX;
+            s.bond_limit[i * cap + k] = 0.0;
         }
         s.bond_count[i] = keep as u32;
     }

@@ -80,6 +80,8 @@ pub struct SolidSet {
     pub bonds: Vec<u32>,
     pub bond_count: Vec<u32>,
     pub bond_count0: Vec<u32>,
+    /// Squared breaking length of each bond slot (layout of `bonds`): max((2h_s)², (λ_c r₀)²).
+    pub bond_limit: Vec<f32>,
     pub bond_capacity: usize,
 }
 

@@ -49,9 +49,14 @@ pub enum Slot {
     Batch,
     Motions,
     IndirectArgs,
+    /// Squared breaking length of each bond slot (same layout as `BondTable`), compacted with it.
+    BondLimit,
 }
 
 impl Slot {
+    /// The slot with the highest binding number (sizes the slot table).
+    pub const LAST: Slot = Slot::BondLimit;
+
     /// Binding number in group 0 (common.wgsl).
     pub const fn binding(self) -> u32 {
         self as u32
@@ -100,6 +105,7 @@ impl Slot {
             Slot::Batch => "batch",
             Slot::Motions => "motions",
             Slot::IndirectArgs => "indirect_args",
+            Slot::BondLimit => "bond_limit",
         }
     }
 
@@ -142,5 +148,6 @@ mod tests {
         assert_eq!(Slot::BoundaryCellStart.binding(), 30);
         assert_eq!(Slot::GridCursor.binding(), 36);
         assert_eq!(Slot::IndirectArgs.binding(), 39);
+        assert_eq!(Slot::BondLimit.binding(), 40);
     }
 }

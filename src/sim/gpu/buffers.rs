@@ -39,6 +39,7 @@ pub const STATE_SLOTS: &[Slot] = &[
     Slot::SolidStress,
     Slot::BondTable,
     Slot::BondCount,
+    Slot::BondLimit,
     // the object poses at tⁿ (written on the GPU by `batch_motion`): restored with the state so a
     // re-run of a diverged batch step by step sees the same boundaries
     Slot::Objects,
@@ -86,7 +87,7 @@ impl SimBuffers {
         max_set: usize,
         cells: usize,
     ) -> SimBuffers {
-        let mut by_slot: Vec<Option<wgpu::Buffer>> = (0..=Slot::IndirectArgs.binding()).map(|_| None).collect();
+        let mut by_slot: Vec<Option<wgpu::Buffer>> = (0..=Slot::LAST.binding()).map(|_| None).collect();
         for (slot, data) in init {
             by_slot[slot.binding() as usize] = Some(create_init(device, slot, &data));
         }

@@ -302,6 +302,7 @@ impl GpuSolver {
         out.push((Slot::SolidStress, bytes(&st)));
         out.push((Slot::BondTable, bytes(&s.bonds)));
         out.push((Slot::BondCount, bytes(&s.bond_count)));
+        out.push((Slot::BondLimit, bytes(&s.bond_limit)));
         out.push((Slot::BoundaryPos, bytes(&zip4(&b.x, &|i| b.m_l[i]))));
         out.push((Slot::BoundaryVel, bytes(&zip4(&b.v, &|i| b.m_s[i]))));
         let p0: Vec<[f32; 4]> = (0..b.x.len()).map(|i| v4(b.x0[i], f32::from_bits(b.object[i]))).collect();

@@ -1,0 +1,73 @@
+//! Irreversible fracture with a critical stretch (issue 6 §2): a bond breaks beyond
+//! max(2h_s, λ_c r₀). With λ_c the bonds born near the support radius survive small strains that the
+//! thesis criterion (r > 2h_s) breaks them at, yet a ball driven through the slab still tears it; the
+//! GPU back-end breaks exactly the same bonds as its CPU twin.
+
+mod common;
+
+use common::gpu::gpu_test;
+use perfuse::scenario::Scenario;
+use perfuse::sim::{BackendKind, Simulation};
+
+fn tear(critical_stretch: Option<f64>) -> Scenario {
+    let stretch = critical_stretch.map(|l| format!(", critical_stretch: Some({l})")).unwrap_or_default();
+    let text = format!(
+        r#"Scenario(
+        name: "tear", dimensions: 2,
+        domain: Domain(min: (-0.05, -0.05, 0.0), max: (0.05, 0.05, 0.0)),
+        solid: Some(Solid(density: 1000.0, c10: 2e4, c01: 0.0, k_s: 1e5, n_sat: 1.0, k_sat: 0.0{stretch})),
+        numerics: Numerics(dx_solid: Some(0.002)),
+        particles: [ Box(phase: Solid, min: (-0.02, -0.01, 0.0), max: (0.02, 0.01, 0.0), fraction: 1.0) ],
+        fixed_regions: [ Box(min: (-0.03, -0.02, -1.0), max: (-0.017, 0.02, 1.0)), Box(min: (0.017, -0.02, -1.0), max: (0.03, 0.02, 1.0)) ],
+        boundaries: [ Boundary(name: "ball", shape: Sphere(centre: (0.0, 0.02, 0.0), radius: 0.004), spacing: Some(0.001),
+                               motion: Translate(velocity: (0.0, -4.0, 0.0))) ],
+        duration: 0.012,
+    )"#
+    );
+    Scenario::from_str_named(&text, "tear.ron").expect("valid")
+}
+
+fn broken_after(sc: &Scenario, backend: BackendKind, t: f64) -> (u64, Vec<Vec<u32>>) {
+    let mut sim = Simulation::new(sc, backend).expect("sim");
+    sim.advance_until(t, 100_000, |_| {}).expect("run");
+    let s = sim.read_state().expect("state");
+    (s.broken_bonds(), s.solid_extra.bond_lists)
+}
+
+#[test]
+fn critical_stretch_spares_small_strains_but_still_tears() {
+    let (thesis, _) = broken_after(&tear(None), BackendKind::Cpu, 0.012);
+    let (stretch, lists) = broken_after(&tear(Some(1.3)), BackendKind::Cpu, 0.012);
+    eprintln!("broken bonds: thesis criterion {thesis}, λ_c = 1.3: {stretch}");
+    assert!(stretch > 20, "the ball must still tear the slab ({stretch} broken)");
+    assert!(stretch < thesis, "λ_c breaks fewer bonds ({stretch} vs {thesis})");
+    for (i, l) in lists.iter().enumerate() {
+        for &j in l {
+            assert!(lists[j as usize].contains(&(i as u32)), "asymmetric bond {i}-{j}");
+        }
+    }
+}
+
+#[test]
+fn invalid_critical_stretch_is_refused() {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenarios/liver.ron")).expect("read");
+    let bad = text.replace("critical_stretch: Some(1.3)", "critical_stretch: Some(0.5)");
+    assert_ne!(bad, text, "liver.ron sets a critical stretch");
+    let e = Scenario::from_str_named(&bad, concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenarios/liver.ron"))
+        .expect_err("λ_c < 1 is refused");
+    assert!(e.to_string().contains("solid.critical_stretch"), "{e}");
+}
+
+#[test]
+fn gpu_breaks_the_same_bonds_as_the_cpu() {
+    gpu_test("gpu_breaks_the_same_bonds_as_the_cpu", |_ctx| {
+        let sc = tear(Some(1.3));
+        let (nc, lc) = broken_after(&sc, BackendKind::Cpu, 0.006);
+        let (ng, lg) = broken_after(&sc, BackendKind::Gpu, 0.006);
+        eprintln!("broken bonds at t = 6 ms: cpu {nc}, gpu {ng}");
+        assert!(nc > 0, "some bonds broke");
+        assert_eq!(nc, ng);
+        assert_eq!(lc, lg, "same bond tables");
+    });
+}
