@@ -2,6 +2,8 @@
 //! the last good state, command handling, and a short headless run of every shipped scenario with mass
 //! conserved (issue: core).
 
+mod common;
+
 use perfuse::output::{RunLength, RunOptions, run_headless};
 use perfuse::scenario::{Motion, Scenario};
 use perfuse::sim::{BackendKind, Command, SimError, Simulation};
@@ -136,18 +138,7 @@ fn every_shipped_scenario_runs_headless() {
 /// path; broken bonds never re-form (intact count never increases) and the table stays symmetric.
 #[test]
 fn fracture_is_irreversible_and_symmetric() {
-    let text = r#"Scenario(
-        name: "tear", dimensions: 2,
-        domain: Domain(min: (-0.05, -0.05, 0.0), max: (0.05, 0.05, 0.0)),
-        solid: Some(Solid(density: 1000.0, c10: 2e4, c01: 0.0, k_s: 1e5, n_sat: 1.0, k_sat: 0.0)),
-        numerics: Numerics(dx_solid: Some(0.002)),
-        particles: [ Box(phase: Solid, min: (-0.02, -0.01, 0.0), max: (0.02, 0.01, 0.0), fraction: 1.0) ],
-        fixed_regions: [ Box(min: (-0.03, -0.02, -1.0), max: (-0.017, 0.02, 1.0)), Box(min: (0.017, -0.02, -1.0), max: (0.03, 0.02, 1.0)) ],
-        boundaries: [ Boundary(name: "ball", shape: Sphere(centre: (0.0, 0.02, 0.0), radius: 0.004), spacing: Some(0.001),
-                               motion: Translate(velocity: (0.0, -4.0, 0.0))) ],
-        duration: 0.012,
-    )"#;
-    let sc = Scenario::from_str_named(text, "tear").expect("valid");
+    let sc = common::scenes::tear(None);
     let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
     let mut intact = sim.read_state().expect("state").intact_bonds();
     let initial = intact;

@@ -6,26 +6,9 @@
 mod common;
 
 use common::gpu::gpu_test;
+use common::scenes::tear;
 use perfuse::scenario::Scenario;
 use perfuse::sim::{BackendKind, Simulation};
-
-fn tear(critical_stretch: Option<f64>) -> Scenario {
-    let stretch = critical_stretch.map(|l| format!(", critical_stretch: Some({l})")).unwrap_or_default();
-    let text = format!(
-        r#"Scenario(
-        name: "tear", dimensions: 2,
-        domain: Domain(min: (-0.05, -0.05, 0.0), max: (0.05, 0.05, 0.0)),
-        solid: Some(Solid(density: 1000.0, c10: 2e4, c01: 0.0, k_s: 1e5, n_sat: 1.0, k_sat: 0.0{stretch})),
-        numerics: Numerics(dx_solid: Some(0.002)),
-        particles: [ Box(phase: Solid, min: (-0.02, -0.01, 0.0), max: (0.02, 0.01, 0.0), fraction: 1.0) ],
-        fixed_regions: [ Box(min: (-0.03, -0.02, -1.0), max: (-0.017, 0.02, 1.0)), Box(min: (0.017, -0.02, -1.0), max: (0.03, 0.02, 1.0)) ],
-        boundaries: [ Boundary(name: "ball", shape: Sphere(centre: (0.0, 0.02, 0.0), radius: 0.004), spacing: Some(0.001),
-                               motion: Translate(velocity: (0.0, -4.0, 0.0))) ],
-        duration: 0.012,
-    )"#
-    );
-    Scenario::from_str_named(&text, "tear.ron").expect("valid")
-}
 
 fn broken_after(sc: &Scenario, backend: BackendKind, t: f64) -> (u64, Vec<Vec<u32>>) {
     let mut sim = Simulation::new(sc, backend).expect("sim");

@@ -45,3 +45,23 @@ pub fn poiseuille_small() -> Scenario {
     let text = include_str!("../../assets/scenarios/poiseuille.ron");
     Scenario::from_str_with_overrides(text, "assets/scenarios/poiseuille.ron", &ov).expect("test scene is valid")
 }
+
+/// A 2-D solid slab clamped at both ends, torn by a ball driven through it (Alg. 2), optionally with
+/// a critical stretch λ_c.
+pub fn tear(critical_stretch: Option<f64>) -> Scenario {
+    let stretch = critical_stretch.map(|l| format!(", critical_stretch: Some({l})")).unwrap_or_default();
+    let text = format!(
+        r#"Scenario(
+        name: "tear", dimensions: 2,
+        domain: Domain(min: (-0.05, -0.05, 0.0), max: (0.05, 0.05, 0.0)),
+        solid: Some(Solid(density: 1000.0, c10: 2e4, c01: 0.0, k_s: 1e5, n_sat: 1.0, k_sat: 0.0{stretch})),
+        numerics: Numerics(dx_solid: Some(0.002)),
+        particles: [ Box(phase: Solid, min: (-0.02, -0.01, 0.0), max: (0.02, 0.01, 0.0), fraction: 1.0) ],
+        fixed_regions: [ Box(min: (-0.03, -0.02, -1.0), max: (-0.017, 0.02, 1.0)), Box(min: (0.017, -0.02, -1.0), max: (0.03, 0.02, 1.0)) ],
+        boundaries: [ Boundary(name: "ball", shape: Sphere(centre: (0.0, 0.02, 0.0), radius: 0.004), spacing: Some(0.001),
+                               motion: Translate(velocity: (0.0, -4.0, 0.0))) ],
+        duration: 0.012,
+    )"#
+    );
+    Scenario::from_str_named(&text, "tear.ron").expect("valid")
+}
