@@ -16,5 +16,6 @@ pub mod app;
 pub mod bench;
 pub mod output;
 pub mod render;
+pub mod replay;
 pub mod scenario;
 pub mod sim;

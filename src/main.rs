@@ -126,6 +126,25 @@ enum Cmd {
         #[arg(long = "set", value_name = "FIELD=VALUE")]
         set: Vec<String>,
     },
+    /// Dynamic mode decomposition of the frames of a `perfuse run` (thesis ch. 5): plots and dmd.json.
+    Dmd {
+        /// Folder with frame_NNNNN.csv (and summary.json, which gives the frame interval).
+        frames: PathBuf,
+        /// Truncation rank r.
+        #[arg(long, conflicts_with = "energy")]
+        rank: Option<usize>,
+        /// Keep the modes holding this fraction of the singular-value energy (e.g. 0.99).
+        #[arg(long)]
+        energy: Option<f64>,
+        /// Include velocities in the state vector (Table 5.1 case 2).
+        #[arg(long)]
+        velocities: bool,
+        /// Time between frames [s] (default: summary.json's frame_interval_s).
+        #[arg(long)]
+        frame_interval: Option<f64>,
+        #[arg(long, default_value = "out/dmd")]
+        out: PathBuf,
+    },
     /// Scripted hemorrhage through the closed-loop cardiovascular model: vitals.csv and PNG plots.
     Vitals {
         /// Fraction of the blood volume removed (0..0.6).
@@ -274,6 +293,38 @@ fn real_main() -> Result<()> {
     let cli = Cli::parse();
     let Some(command) = cli.command else { return viewer(&cli) };
     match command {
+        Cmd::Dmd { frames, rank, energy, velocities, frame_interval, out } => {
+            use perfuse::analysis::dmd;
+            let dt = match frame_interval {
+                Some(dt) => dt,
+                None => {
+                    let path = frames.join("summary.json");
+                    let text = std::fs::read_to_string(&path).with_context(|| {
+                        format!("{}: give --frame-interval or the run's summary.json", path.display())
+                    })?;
+                    let v: serde_json::Value =
+                        serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
+                    v.get("frame_interval_s").and_then(|x| x.as_f64()).with_context(|| {
+                        format!("{} has no frame_interval_s (run with output.frame_interval set)", path.display())
+                    })?
+                }
+            };
+            if !(dt.is_finite() && dt > 0.0) {
+                bail!("frame interval {dt} s must be positive");
+            }
+            let sel = dmd::rank_selection_from_cli(rank, energy)?;
+            let report =
+                dmd::run_dmd(&frames, dt, dmd::FrameFields { velocities }, sel, dmd::AmplitudeFit::default(), &out)?;
+            println!(
+                "DMD of {}: rank {}, dominant frequency {}, reconstruction error {:.3e}; wrote dmd.json and plots to {}",
+                frames.display(),
+                report.rank,
+                report.dominant_frequency_hz.map_or("none".to_string(), |f| format!("{f:.4} Hz")),
+                report.reconstruction_error,
+                out.display()
+            );
+            Ok(())
+        }
         Cmd::Vitals { loss, start, over, duration, out } => {
             use perfuse::analysis::hemorrhage;
             if !(0.0..=0.6).contains(&loss) {

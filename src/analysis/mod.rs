@@ -2,6 +2,7 @@
 //! their report and plots (`validate`), and PNG charts (`plot`).
 
 pub mod analytic;
+pub mod dmd;
 pub mod hemorrhage;
 pub mod plot;
 pub mod validate;

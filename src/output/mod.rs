@@ -58,6 +58,10 @@ pub struct Summary {
     pub diverged: bool,
     pub divergence: Option<String>,
     pub frames_written: usize,
+    /// Simulated time between frame_*.csv files [s] (`output.frame_interval`; none: only the final state).
+    pub frame_interval_s: Option<f64>,
+    /// Simulated time of each frame_NNNNN.csv, in order [s].
+    pub frame_times_s: Vec<f64>,
 }
 
 /// How long a headless run goes.
@@ -184,16 +188,18 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     let frame_dt = scenario.output.frame_interval;
     let probe_dt = frame_dt.unwrap_or(f64::INFINITY).min(if t_end.is_finite() { t_end / 200.0 } else { f64::INFINITY });
     let mut frames = 0usize;
+    let mut frame_times: Vec<f64> = Vec::new();
     let mut probe_rows: Vec<(f64, Vec<f64>)> = Vec::new();
-    let write_frame = |state: &State, frames: &mut usize| -> Result<(), OutputError> {
+    let write_frame = |state: &State, frames: &mut usize, times: &mut Vec<f64>| -> Result<(), OutputError> {
         if let Some(dir) = &opts.out {
             write_frame_csv(&dir.join(format!("frame_{:05}.csv", *frames)), state, origin)?;
         }
         *frames += 1;
+        times.push(state.t);
         Ok(())
     };
     if frame_dt.is_some() {
-        write_frame(&s0, &mut frames)?;
+        write_frame(&s0, &mut frames, &mut frame_times)?;
     }
     probe_rows.push((s0.t, probes.iter().map(|p| probe_value(&s0, p, origin)).collect()));
     let mut next_frame = frame_dt.unwrap_or(f64::INFINITY);
@@ -221,7 +227,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
                         }
                     }
                     if t >= next_frame - 1e-12 {
-                        write_frame(&st, &mut frames)?;
+                        write_frame(&st, &mut frames, &mut frame_times)?;
                         while next_frame <= t {
                             next_frame += frame_dt.unwrap_or(f64::INFINITY);
                         }
@@ -249,8 +255,14 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     }
     let wall_run = run_start.elapsed().as_secs_f64();
     let fin = sim.read_state()?;
-    if frame_dt.is_none() || (frames > 0 && fin.t > next_frame - frame_dt.unwrap_or(0.0) + 1e-12) {
-        write_frame(&fin, &mut frames)?;
+    // The final state: frame_00000.csv when the scenario asks for no frames; otherwise `final.csv`
+    // when it falls between frame times, so that frame_*.csv stay uniformly spaced (DMD relies on it).
+    if frame_dt.is_none() {
+        write_frame(&fin, &mut frames, &mut frame_times)?;
+    } else if frame_times.last().is_none_or(|t| fin.t > t + 1e-12)
+        && let Some(dir) = &opts.out
+    {
+        write_frame_csv(&dir.join("final.csv"), &fin, origin)?;
     }
     if let Some(dir) = &opts.out
         && !scenario.output.probes.is_empty()
@@ -301,6 +313,8 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         diverged: divergence.is_some(),
         divergence,
         frames_written: frames,
+        frame_interval_s: frame_dt,
+        frame_times_s: frame_times,
     };
     if let Some(dir) = &opts.out {
         let path = dir.join("summary.json");
