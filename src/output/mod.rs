@@ -53,7 +53,14 @@ pub struct Summary {
     pub dt_limited_by: std::collections::BTreeMap<String, u64>,
     pub mass: PhaseMass,
     pub particles: ParticleCounts,
+    /// Bonds broken since t = 0 (pairs, Alg. 2).
     pub broken_bonds: u64,
+    /// Connected components of the solid by intact bonds with at least 8 particles, kinematic
+    /// (fixed) particles left out; `solid_fragments` counts the smaller pieces.
+    pub solid_components: usize,
+    pub solid_fragments: usize,
+    /// Liquid particles outside the solid's body or capsule (nˢ < 0.05 at the particle).
+    pub liquid_outside: usize,
     pub particles_outside_domain: usize,
     pub diverged: bool,
     pub divergence: Option<String>,
@@ -292,6 +299,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         solid_end_kg: fin.solid.total_mass(),
         conserved: s0.liquid.total_mass() == fin.liquid.total_mass() && s0.solid.total_mass() == fin.solid.total_mass(),
     };
+    let components = fin.solid_component_sizes();
     let summary = Summary {
         scenario: scenario.name.clone(),
         backend: format!("{:?}", opts.backend).to_lowercase(),
@@ -309,6 +317,9 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
             boundary: fin.boundary.pos.len(),
         },
         broken_bonds: fin.broken_bonds(),
+        solid_components: components.iter().filter(|&&c| c >= crate::sim::state::MIN_COMPONENT).count(),
+        solid_fragments: components.iter().filter(|&&c| c < crate::sim::state::MIN_COMPONENT).count(),
+        liquid_outside: fin.liquid_outside(),
         particles_outside_domain: count_outside(&fin, &sim),
         diverged: divergence.is_some(),
         divergence,

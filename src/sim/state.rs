@@ -97,6 +97,51 @@ impl State {
         self.solid_extra.bonds.iter().map(|&b| b as u64).sum::<u64>() / 2
     }
 
+    /// Sizes of the connected components of the solid by intact bonds (Alg. 2), largest first.
+    /// Kinematic (fixed, ligament) particles are left out so that a clamp does not join the pieces
+    /// it holds.
+    pub fn solid_component_sizes(&self) -> Vec<usize> {
+        let n = self.solid.len();
+        let fixed =
+            |i: usize| self.solid_extra.flags.get(i).is_some_and(|f| f & crate::scenario::SolidFlags::KINEMATIC != 0);
+        let mut parent: Vec<usize> = (0..n).collect();
+        fn root(parent: &mut [usize], mut i: usize) -> usize {
+            while parent[i] != i {
+                parent[i] = parent[parent[i]];
+                i = parent[i];
+            }
+            i
+        }
+        for (i, list) in self.solid_extra.bond_lists.iter().enumerate() {
+            if fixed(i) {
+                continue;
+            }
+            for &j in list {
+                let j = j as usize;
+                if j < n && !fixed(j) {
+                    let (a, b) = (root(&mut parent, i), root(&mut parent, j));
+                    if a != b {
+                        parent[a.max(b)] = a.min(b);
+                    }
+                }
+            }
+        }
+        let mut size = vec![0usize; n];
+        for i in (0..n).filter(|&i| !fixed(i)) {
+            let r = root(&mut parent, i);
+            size[r] += 1;
+        }
+        let mut sizes: Vec<usize> = size.into_iter().filter(|&s| s > 0).collect();
+        sizes.sort_unstable_by(|a, b| b.cmp(a));
+        sizes
+    }
+
+    /// Liquid particles outside the solid body: those that see (almost) no solid, nˢ < 0.05 (inside the
+    /// perfused tissue nˢ ≈ nˢ_sat; at its surface about half of that).
+    pub fn liquid_outside(&self) -> usize {
+        self.liquid.n_s.iter().filter(|&&n| n < LIQUID_OUTSIDE_NS).count()
+    }
+
     /// Number of bonds broken since t = 0 (pairs).
     pub fn broken_bonds(&self) -> u64 {
         let init: u64 = self.solid_extra.bonds_initial.iter().map(|&b| b as u64).sum();
@@ -105,7 +150,32 @@ impl State {
     }
 }
 
+/// nˢ below which a liquid particle counts as outside the solid ([`State::liquid_outside`]).
+pub const LIQUID_OUTSIDE_NS: f32 = 0.05;
+
+/// Smallest solid component counted in `solid_components` (a 2 × 2 × 2 block of lattice sites);
+/// smaller pieces are fragments.
+pub const MIN_COMPONENT: usize = 8;
+
 /// Finite check used by invariants.
 pub fn all_finite(v: &[Vec3]) -> bool {
     v.iter().all(|x| x.is_finite())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A chain 0-1-2 and a pair 3-4 joined to it only through kinematic particle 5: two components
+    /// (the clamp does not join them); then breaking bond 1-2 makes three.
+    #[test]
+    fn components_by_intact_bonds_without_kinematic_particles() {
+        let mut s = State::default();
+        s.solid.pos = vec![Vec3::ZERO; 6];
+        s.solid_extra.flags = vec![0, 0, 0, 0, 0, crate::scenario::SolidFlags::KINEMATIC];
+        s.solid_extra.bond_lists = vec![vec![1], vec![0, 2], vec![1, 5], vec![4, 5], vec![3], vec![2, 3]];
+        assert_eq!(s.solid_component_sizes(), vec![3, 2]);
+        s.solid_extra.bond_lists = vec![vec![1], vec![0], vec![5], vec![4, 5], vec![3], vec![2, 3]];
+        assert_eq!(s.solid_component_sizes(), vec![2, 2, 1]);
+    }
 }
