@@ -30,6 +30,9 @@ struct Cli {
     /// Viewer: start paused.
     #[arg(long)]
     paused: bool,
+    /// Viewer: record the session to this file (replay with `perfuse replay FILE --verify`).
+    #[arg(long)]
+    record: Option<PathBuf>,
 }
 
 /// The scenario `cargo run --release` opens.
@@ -144,6 +147,16 @@ enum Cmd {
         frame_interval: Option<f64>,
         #[arg(long, default_value = "out/dmd")]
         out: PathBuf,
+    },
+    /// Replay a recorded session headless; --verify compares the state hashes stored in it.
+    Replay {
+        /// Recording (.pfr) written by the viewer's --record or a scripted session.
+        file: PathBuf,
+        /// Re-simulate and compare every stored state hash (bit-identical on the same adapter).
+        #[arg(long)]
+        verify: bool,
+        #[arg(long, value_enum, default_value = "cpu")]
+        backend: Backend,
     },
     /// Scripted hemorrhage through the closed-loop cardiovascular model: vitals.csv and PNG plots.
     Vitals {
@@ -274,6 +287,7 @@ fn viewer(cli: &Cli) -> Result<()> {
         screenshot: cli.screenshot.clone(),
         size: parse_size(&cli.size)?,
         paused: cli.paused,
+        record: cli.record.clone(),
     };
     let report = perfuse::app::run(opts)?;
     println!(
@@ -323,6 +337,38 @@ fn real_main() -> Result<()> {
                 report.reconstruction_error,
                 out.display()
             );
+            Ok(())
+        }
+        Cmd::Replay { file, verify, backend } => {
+            use perfuse::replay::{format::read_recording_file, session};
+            let rec = read_recording_file(&file)?;
+            for w in &rec.warnings {
+                eprintln!("warning: {w}");
+            }
+            println!(
+                "{}: scenario `{}`, recorded by {} on {} {}, {} chunks{}",
+                file.display(),
+                rec.header.scenario_name,
+                rec.header.program_version,
+                rec.header.backend,
+                rec.header.adapter,
+                rec.chunks.len(),
+                if rec.complete { "" } else { " (incomplete: replaying up to the last good chunk)" }
+            );
+            let out = session::replay(&rec, backend.into(), verify)?;
+            println!(
+                "replayed {} commands to step {} (t = {:.6} s); final state hash {:016x}",
+                out.commands, out.steps, out.t, out.final_hash
+            );
+            if verify {
+                println!("{} state hashes checked, {} mismatches", out.hashes_checked, out.mismatches.len());
+                if let Some((step, want, got)) = out.mismatches.first() {
+                    bail!(
+                        "replay diverged from the recording at step {step} (hash {want:016x} recorded, {got:016x} replayed); \
+                         replay on the back-end and adapter that recorded it"
+                    );
+                }
+            }
             Ok(())
         }
         Cmd::Vitals { loss, start, over, duration, out } => {

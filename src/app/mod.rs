@@ -37,6 +37,8 @@ pub struct ViewerOptions {
     pub screenshot: Option<PathBuf>,
     pub size: (u32, u32),
     pub paused: bool,
+    /// Record the session (the first scenario run) to this file (`perfuse replay FILE --verify`).
+    pub record: Option<PathBuf>,
 }
 
 /// Why the viewer could not run.
@@ -166,9 +168,16 @@ impl App {
         let shared = Arc::new(Shared::default());
         // The simulation runs on the GPU when it is a hardware one (or when asked), else on the CPU.
         let gpu_sim = self.opts.gpu_simulation.unwrap_or(ctx.info.device_type != wgpu::DeviceType::Cpu);
-        let sim_thread =
-            sim_thread::spawn(ctx.clone(), gpu_sim, self.opts.scenario.clone(), self.opts.paused, rx, shared.clone())
-                .map_err(|e| AppError::Gpu(format!("could not start the simulation thread: {e}")))?;
+        let sim_thread = sim_thread::spawn(
+            ctx.clone(),
+            gpu_sim,
+            self.opts.scenario.clone(),
+            self.opts.paused,
+            self.opts.record.clone(),
+            rx,
+            shared.clone(),
+        )
+        .map_err(|e| AppError::Gpu(format!("could not start the simulation thread: {e}")))?;
         let mut ui_state = ui::UiState {
             scenarios: ui::shipped_scenarios(),
             current: self.opts.scenario_path.clone(),

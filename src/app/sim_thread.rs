@@ -5,6 +5,7 @@
 //! it. The viewer reaches it only through [`Control`] messages on a channel — the same
 //! [`Command`]s a recording holds, plus run control.
 
+use crate::replay::session::{RecordedSimulation, Recorder};
 use crate::scenario::Scenario;
 use crate::sim::frame::{FrameBuffers, FrameInfo};
 use crate::sim::gpu::GpuContext;
@@ -88,7 +89,10 @@ struct Runner {
     use_gpu: bool,
     shared: Arc<Shared>,
     scenario: Scenario,
-    sim: Option<Simulation>,
+    sim: Option<RecordedSimulation>,
+    /// `--record FILE`: the first scenario run is recorded there (finished on reset, load or quit).
+    record: Option<std::path::PathBuf>,
+    last_checkpoint: Instant,
     frames: Option<Arc<FrameSet>>,
     generation: u64,
     front: usize,
@@ -125,11 +129,29 @@ impl RateMeter {
 
 impl Runner {
     fn build(&mut self) {
+        self.finish_recording();
         self.sim = None;
         let mut status = SimStatus { scenario: self.scenario.name.clone(), paused: self.paused, ..Default::default() };
         match Simulation::with_gpu(&self.scenario, self.use_gpu.then(|| self.ctx.clone())) {
-            Ok(mut sim) => {
+            Ok(sim) => {
                 status.backend = sim.backend_name();
+                let recorder = match self.record.take() {
+                    Some(path) => {
+                        let adapter = if self.use_gpu { self.ctx.info.name.clone() } else { String::new() };
+                        match Recorder::create(&path, &self.scenario, &sim.backend_name(), &adapter) {
+                            Ok(r) => {
+                                log::info!("recording to {}", path.display());
+                                Some(r)
+                            }
+                            Err(e) => {
+                                status.error = Some(format!("recording: {e}"));
+                                None
+                            }
+                        }
+                    }
+                    None => None,
+                };
+                let mut sim = RecordedSimulation { sim, recorder };
                 // The scenario's damped relaxation runs live, before t = 0 (SPEC §7.5).
                 self.relax_end = None;
                 if let Some(r) = self.scenario.relaxation.clone().filter(|r| r.duration > 0.0) {
@@ -141,7 +163,7 @@ impl Runner {
                         Err(e) => status.error = Some(e.to_string()),
                     }
                 }
-                let (nl, ns) = sim.frame_counts();
+                let (nl, ns) = sim.sim.frame_counts();
                 (status.n_liquid, status.n_solid) = (nl, ns);
                 self.generation += 1;
                 let sets = [
@@ -159,11 +181,26 @@ impl Runner {
         self.publish();
     }
 
+    /// Ends the recording, if one runs: a last state hash, then the End chunk.
+    fn finish_recording(&mut self) {
+        if let Some(rs) = &mut self.sim
+            && rs.recorder.is_some()
+        {
+            let _ = rs.checkpoint();
+            if let Some(r) = rs.recorder.take() {
+                match r.finish() {
+                    Ok(bytes) => log::info!("recording finished: {bytes} bytes"),
+                    Err(e) => log::error!("recording: {e}"),
+                }
+            }
+        }
+    }
+
     /// Writes the back set and swaps it to the front.
     fn publish(&mut self) {
-        let (Some(sim), Some(frames)) = (&self.sim, &self.frames) else { return };
+        let (Some(rs), Some(frames)) = (&self.sim, &self.frames) else { return };
         let back = 1 - self.front;
-        match sim.publish(&frames.sets[back], &self.ctx.queue) {
+        match rs.sim.publish(&frames.sets[back], &self.ctx.queue) {
             Ok(info) => {
                 self.front = back;
                 let mut p = lock(&self.shared.published);
@@ -178,7 +215,10 @@ impl Runner {
 
     fn handle(&mut self, c: Control) -> bool {
         match c {
-            Control::Quit => return false,
+            Control::Quit => {
+                self.finish_recording();
+                return false;
+            }
             Control::Pause(p) => {
                 self.paused = p;
                 lock(&self.shared.status).paused = p;
@@ -206,11 +246,11 @@ impl Runner {
 
     /// Takes up to `steps` steps (stopping at the end of the relaxation), updating the status.
     fn advance(&mut self, steps: u32) {
-        let Some(sim) = &mut self.sim else { return };
-        let t0 = sim.time();
+        let Some(rs) = &mut self.sim else { return };
+        let t0 = rs.sim.time();
         let t_end = self.relax_end.unwrap_or(f64::INFINITY);
         let start = Instant::now();
-        let r = sim.advance(steps, t_end);
+        let r = rs.sim.advance(steps, t_end);
         let wall = start.elapsed();
         let mut st = lock(&self.shared.status);
         match r {
@@ -243,17 +283,17 @@ impl Runner {
                 }
             }
         }
-        st.steps = sim.stats().steps;
-        st.broken_bonds = sim.stats().broken_bonds;
+        st.steps = rs.sim.stats().steps;
+        st.broken_bonds = rs.sim.stats().broken_bonds;
         st.steps_per_s = self.rate.steps_per_s;
         st.real_time_factor = self.rate.rtf;
         // End of the relaxation: undamped from t = 0.
         if let Some(t_end) = self.relax_end
-            && sim.time() >= t_end
+            && rs.sim.time() >= t_end
         {
-            let r = sim
+            let r = rs
                 .apply(&Command::SetDamping { damping: 0.0, gravity_solid_only: false })
-                .and_then(|_| sim.apply(&Command::SetTime(0.0)));
+                .and_then(|_| rs.apply(&Command::SetTime(0.0)));
             if let Err(e) = r {
                 st.error = Some(e.to_string());
             }
@@ -261,6 +301,13 @@ impl Runner {
         }
         st.relaxing = self.relax_end.is_some();
         drop(st);
+        // A state hash every 2 s of wall time lets `perfuse replay --verify` check the recording.
+        if rs.recorder.is_some() && self.last_checkpoint.elapsed() > Duration::from_secs(2) {
+            self.last_checkpoint = Instant::now();
+            if let Err(e) = rs.checkpoint() {
+                lock(&self.shared.status).error = Some(format!("recording: {e}"));
+            }
+        }
         self.publish();
     }
 
@@ -304,6 +351,7 @@ pub fn spawn(
     use_gpu: bool,
     scenario: Scenario,
     paused: bool,
+    record: Option<std::path::PathBuf>,
     rx: Receiver<Control>,
     shared: Arc<Shared>,
 ) -> std::io::Result<std::thread::JoinHandle<()>> {
@@ -313,6 +361,8 @@ pub fn spawn(
         shared,
         scenario,
         sim: None,
+        record,
+        last_checkpoint: Instant::now(),
         frames: None,
         generation: 0,
         front: 1,

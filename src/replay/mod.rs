@@ -1,4 +1,6 @@
-//! Session recordings (issue 8): the versioned, chunked, checksummed container (`format`). The
-//! recorder and player that fill it with the viewer's command stream and state keyframes build on it.
+//! Session recordings (issue 8): the versioned, chunked, checksummed container (`format`) and the
+//! recorder and player of sessions (`session`): the scenario plus every command at the step it acts
+//! before, with state hashes to verify that a replay is bit-identical.
 
 pub mod format;
+pub mod session;

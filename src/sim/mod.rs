@@ -69,7 +69,8 @@ pub struct Advance {
 }
 
 /// Commands: the only way to change a running simulation (viewer input, replay, scripted tests).
-#[derive(Clone, Debug, PartialEq)]
+/// Serialisable: a recording is the scenario plus the stream of commands with the step they act at.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub enum Command {
     /// Replace the motion of boundary object `object`; it continues from its current pose.
     SetBoundaryMotion { object: usize, motion: Motion },
