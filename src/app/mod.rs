@@ -631,6 +631,8 @@ impl Gfx {
             self.egui_renderer.free_texture(id);
         }
         self.ctx.queue.submit(extra.into_iter().chain([enc.finish()]));
+        self.renderer.submitted();
+        self.stats.gpu_pass_ms = self.renderer.pass_ms().iter().map(|(n, ms)| (n.to_string(), *ms)).collect();
         if let Some(path) = self.screenshot_next.take() {
             let msg = match self.save_screenshot(&frame.texture, &path) {
                 Ok(()) => format!("saved {}", path.display()),

@@ -67,6 +67,10 @@ pub struct SimStatus {
     /// A command or build failure to show (cleared by the next success).
     pub error: Option<String>,
     pub publishes: u64,
+    /// The patient's vitals (scenarios with `physiology`), sampled every half second of wall time.
+    pub vitals: Option<crate::sim::cardio::Vitals>,
+    /// (t [s], MAP [mmHg], HR [bpm], blood lost [mL]) history for the panel's plot.
+    pub vitals_history: Vec<[f64; 4]>,
 }
 
 /// What the two threads share.
@@ -93,6 +97,8 @@ struct Runner {
     /// `--record FILE`: the first scenario run is recorded there (finished on reset, load or quit).
     record: Option<std::path::PathBuf>,
     last_checkpoint: Instant,
+    patient: Option<crate::sim::physiology::Patient>,
+    last_vitals: Instant,
     frames: Option<Arc<FrameSet>>,
     generation: u64,
     front: usize,
@@ -152,6 +158,14 @@ impl Runner {
                     None => None,
                 };
                 let mut sim = RecordedSimulation { sim, recorder };
+                self.patient = match self.scenario.physiology.as_ref().map(crate::sim::physiology::Patient::new) {
+                    Some(Ok(p)) => Some(p),
+                    Some(Err(e)) => {
+                        status.error = Some(format!("physiology: {e}"));
+                        None
+                    }
+                    None => None,
+                };
                 // The scenario's damped relaxation runs live, before t = 0 (SPEC §7.5).
                 self.relax_end = None;
                 if let Some(r) = self.scenario.relaxation.clone().filter(|r| r.duration > 0.0) {
@@ -301,6 +315,24 @@ impl Runner {
         }
         st.relaxing = self.relax_end.is_some();
         drop(st);
+        // The patient, from a readback every half second of wall time (not per step).
+        if self.patient.is_some() && self.last_vitals.elapsed() > Duration::from_millis(500) {
+            self.last_vitals = Instant::now();
+            let rho0 = self.scenario.liquid.as_ref().map_or(1000.0, |l| l.density);
+            match (rs.sim.read_state(), self.patient.as_mut()) {
+                (Ok(state), Some(p)) => {
+                    let v = p.update(&state, rho0);
+                    let mut st = lock(&self.shared.status);
+                    st.vitals = Some(v);
+                    st.vitals_history.push([state.t, v.map_mmhg, v.hr_bpm, v.blood_lost_ml]);
+                    if st.vitals_history.len() > 2000 {
+                        st.vitals_history.drain(..1000);
+                    }
+                }
+                (Err(e), _) => lock(&self.shared.status).error = Some(e.to_string()),
+                _ => {}
+            }
+        }
         // A state hash every 2 s of wall time lets `perfuse replay --verify` check the recording.
         if rs.recorder.is_some() && self.last_checkpoint.elapsed() > Duration::from_secs(2) {
             self.last_checkpoint = Instant::now();
@@ -363,6 +395,8 @@ pub fn spawn(
         sim: None,
         record,
         last_checkpoint: Instant::now(),
+        patient: None,
+        last_vitals: Instant::now(),
         frames: None,
         generation: 0,
         front: 1,

@@ -28,6 +28,8 @@ pub struct FrameStats {
     pub frame_ms: f64,
     pub size: (u32, u32),
     pub adapter: String,
+    /// GPU milliseconds per render pass (timestamp queries; empty where the adapter has none).
+    pub gpu_pass_ms: Vec<(String, f64)>,
 }
 
 /// State the panels edit in place.
@@ -154,6 +156,37 @@ pub fn panels(
             }
             ui.separator();
 
+            if let Some(v) = &status.vitals {
+                ui.strong("Patient");
+                egui::Grid::new("vitals").num_columns(2).show(ui, |ui| {
+                    let row = |ui: &mut egui::Ui, k: &str, v: String| {
+                        ui.label(k);
+                        ui.label(v);
+                        ui.end_row();
+                    };
+                    row(
+                        ui,
+                        "blood pressure",
+                        format!("{:.0}/{:.0} mmHg (MAP {:.0})", v.systolic_mmhg, v.diastolic_mmhg, v.map_mmhg),
+                    );
+                    row(ui, "heart rate", format!("{:.0} bpm", v.hr_bpm));
+                    row(ui, "cardiac output", format!("{:.2} L/min", v.cardiac_output_l_min));
+                    row(
+                        ui,
+                        "blood lost",
+                        format!("{:.0} mL ({:.1} %)", v.blood_lost_ml, 100.0 * v.blood_lost_fraction),
+                    );
+                    row(
+                        ui,
+                        "shock class (ATLS)",
+                        ["–", "I", "II", "III", "IV"].get(v.shock_class as usize).unwrap_or(&"?").to_string(),
+                    );
+                    row(ui, "hepatic inflow", format!("{:.0} mL/min", v.hepatic_flow_ml_min));
+                });
+                vitals_plot(ui, &status.vitals_history);
+                ui.separator();
+            }
+
             ui.strong("Statistics");
             egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
                 let row = |ui: &mut egui::Ui, k: &str, v: String| {
@@ -173,6 +206,9 @@ pub fn panels(
                 row(ui, "render", format!("{:.1} fps, {:.1} ms/frame", frame.fps, frame.frame_ms));
                 row(ui, "window", format!("{}×{}", frame.size.0, frame.size.1));
                 row(ui, "adapter", frame.adapter.clone());
+                for (name, ms) in &frame.gpu_pass_ms {
+                    row(ui, &format!("  GPU {name}"), format!("{ms:.2} ms"));
+                }
             });
             if let Some(e) = &status.error {
                 ui.colored_label(egui::Color32::from_rgb(255, 170, 60), e);
@@ -205,6 +241,28 @@ pub fn panels(
         state.show_help = open;
     }
     actions
+}
+
+/// A small time plot of MAP (red) and HR (green) on a 40–160 scale, and blood lost (orange, 0 to the
+/// largest loss).
+fn vitals_plot(ui: &mut egui::Ui, history: &[[f64; 4]]) {
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(ui.available_width(), 70.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 2.0, egui::Color32::from_gray(24));
+    let (Some(first), Some(last)) = (history.first(), history.last()) else { return };
+    let span = (last[0] - first[0]).max(1e-9);
+    let lost_max = history.iter().map(|h| h[3]).fold(1.0, f64::max);
+    let x = |t: f64| rect.left() + ((t - first[0]) / span) as f32 * rect.width();
+    let y = |v: f64, lo: f64, hi: f64| rect.bottom() - (((v - lo) / (hi - lo)).clamp(0.0, 1.0) as f32) * rect.height();
+    for (k, colour, lo, hi) in [
+        (1usize, egui::Color32::from_rgb(230, 70, 60), 40.0, 160.0),
+        (2, egui::Color32::from_rgb(80, 200, 90), 40.0, 160.0),
+        (3, egui::Color32::from_rgb(230, 150, 40), 0.0, lost_max),
+    ] {
+        let pts: Vec<egui::Pos2> = history.iter().map(|h| egui::pos2(x(h[0]), y(h[k], lo, hi))).collect();
+        painter.add(egui::Shape::line(pts, egui::Stroke::new(1.5, colour)));
+    }
+    ui.label("red MAP, green HR (40–160), orange blood lost");
 }
 
 /// The controls, shown by the help overlay and the README.

@@ -15,6 +15,8 @@ pub enum OutputError {
     Io { path: String, source: std::io::Error },
     #[error(transparent)]
     Sim(#[from] SimError),
+    #[error("physiology: {0}")]
+    Physiology(#[from] crate::sim::cardio::CardioError),
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> OutputError + '_ {
@@ -69,6 +71,13 @@ pub struct Summary {
     pub frame_interval_s: Option<f64>,
     /// Simulated time of each frame_NNNNN.csv, in order [s].
     pub frame_times_s: Vec<f64>,
+    /// With `physiology`: blood lost by the patient [mL] (simulated loss × volume_scale), the simulated
+    /// volume outside the organ [m³], the model's hepatic arterial inflow integrated over the run [m³]
+    /// and the vitals at the end (also `vitals.csv`, one row per frame).
+    pub blood_lost_ml: Option<f64>,
+    pub blood_outside_organ_m3: Option<f64>,
+    pub model_hepatic_volume_m3: Option<f64>,
+    pub vitals_final: Option<crate::sim::cardio::Vitals>,
 }
 
 /// How long a headless run goes.
@@ -173,6 +182,17 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         divergence = Some(e.to_string());
     }
     let s0 = sim.read_state()?;
+    // The patient (issue 7): sampled with every state read back (frames, probes, the end).
+    let rho0_l = scenario.liquid.as_ref().map_or(1000.0, |l| l.density);
+    let mut patient = scenario.physiology.as_ref().map(crate::sim::physiology::Patient::new).transpose()?;
+    let mut vitals_rows: Vec<(f64, f64, crate::sim::cardio::Vitals)> = Vec::new();
+    let mut sample_patient = |st: &State, rows: &mut Vec<(f64, f64, crate::sim::cardio::Vitals)>| {
+        if let Some(p) = &mut patient {
+            let v = p.update(st, rho0_l);
+            rows.push((st.t, p.model.hepatic_flow_m3_s(), v));
+        }
+    };
+    sample_patient(&s0, &mut vitals_rows);
     let d = scenario.dimensions;
     let probes: Vec<ProbeSel> = scenario
         .output
@@ -227,6 +247,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
                 let t = adv.t;
                 if t >= next_frame - 1e-12 || t >= next_probe - 1e-12 {
                     let st = sim.read_state()?;
+                    sample_patient(&st, &mut vitals_rows);
                     if t >= next_probe - 1e-12 {
                         probe_rows.push((st.t, probes.iter().map(|p| probe_value(&st, p, origin)).collect()));
                         while next_probe <= t {
@@ -262,6 +283,35 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     }
     let wall_run = run_start.elapsed().as_secs_f64();
     let fin = sim.read_state()?;
+    if vitals_rows.last().is_none_or(|r| fin.t > r.0) {
+        sample_patient(&fin, &mut vitals_rows);
+    }
+    let (model_hepatic, lost_sim) =
+        patient.as_ref().map_or((None, None), |p| (Some(p.model.hepatic_volume_m3()), Some(p.lost_simulated_m3())));
+    if let Some(dir) = &opts.out
+        && !vitals_rows.is_empty()
+    {
+        let path = dir.join("vitals.csv");
+        let mut text = String::from(
+            "t_s,hepatic_inflow_ml_s,map_mmhg,systolic_mmhg,diastolic_mmhg,hr_bpm,cardiac_output_l_min,\
+             blood_lost_ml,blood_lost_fraction,shock_class\n",
+        );
+        for (t, q, v) in &vitals_rows {
+            text.push_str(&format!(
+                "{t:.6},{:.4},{:.3},{:.3},{:.3},{:.3},{:.4},{:.3},{:.5},{}\n",
+                q * 1e6,
+                v.map_mmhg,
+                v.systolic_mmhg,
+                v.diastolic_mmhg,
+                v.hr_bpm,
+                v.cardiac_output_l_min,
+                v.blood_lost_ml,
+                v.blood_lost_fraction,
+                v.shock_class
+            ));
+        }
+        std::fs::write(&path, text).map_err(io_err(&path))?;
+    }
     // The final state: frame_00000.csv when the scenario asks for no frames; otherwise `final.csv`
     // when it falls between frame times, so that frame_*.csv stay uniformly spaced (DMD relies on it).
     if frame_dt.is_none() {
@@ -326,6 +376,10 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         frames_written: frames,
         frame_interval_s: frame_dt,
         frame_times_s: frame_times,
+        blood_lost_ml: vitals_rows.last().map(|r| r.2.blood_lost_ml),
+        blood_outside_organ_m3: lost_sim,
+        model_hepatic_volume_m3: model_hepatic,
+        vitals_final: vitals_rows.last().map(|r| r.2),
     };
     if let Some(dir) = &opts.out {
         let path = dir.join("summary.json");

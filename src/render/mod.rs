@@ -8,6 +8,7 @@ pub mod gpu_data;
 pub mod offscreen;
 pub mod renderer;
 pub mod snapshot;
+pub mod timer;
 
 pub use camera::OrbitCamera;
 pub use gpu_data::FieldMode;

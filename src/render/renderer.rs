@@ -124,6 +124,8 @@ pub struct Renderer {
     shape_group: wgpu::BindGroup,
     targets: Option<Targets>,
     pub settings: RenderSettings,
+    /// GPU time per pass (timestamp queries), where the device has them.
+    timer: Option<super::timer::RenderTimer>,
 }
 
 fn storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
@@ -360,6 +362,7 @@ impl Renderer {
             shape_group,
             targets: None,
             settings: RenderSettings::default(),
+            timer: super::timer::RenderTimer::new(device, queue),
         })
     }
 
@@ -539,6 +542,9 @@ impl Renderer {
             return Err(RenderError::BadSize { width: size.0, height: size.1, limit });
         }
         self.ensure_targets(size);
+        if let Some(tm) = &mut self.timer {
+            tm.begin_frame();
+        }
         let cam = self.camera_uniform(camera, size, scene);
         self.queue.write_buffer(&self.camera_buf, 0, bytemuck::bytes_of(&cam));
         let (shapes, n_opaque) = self.shapes(scene);
@@ -553,6 +559,7 @@ impl Renderer {
         }
         self.composite_pipeline(format);
         let Some(t) = self.targets.as_ref() else { return Ok(()) };
+        let timer = &mut self.timer;
         let bg = self.settings.background;
         let fluid = self.settings.fluid;
         let clear_colour = wgpu::Color { r: bg[0] as f64, g: bg[1] as f64, b: bg[2] as f64, a: 1.0 };
@@ -575,7 +582,7 @@ impl Renderer {
                 label: Some("render.scene"),
                 color_attachments: &[Some(colour_att(&t.scene, clear_colour))],
                 depth_stencil_attachment: Some(depth_att(wgpu::LoadOp::Clear(1.0))),
-                timestamp_writes: None,
+                timestamp_writes: timer.as_mut().and_then(|t| t.writes(0)),
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -610,7 +617,7 @@ impl Renderer {
                 label: Some("render.blood_thickness"),
                 color_attachments: &[Some(colour_att(&t.thickness, wgpu::Color::TRANSPARENT))],
                 depth_stencil_attachment: Some(depth_att(wgpu::LoadOp::Load)),
-                timestamp_writes: None,
+                timestamp_writes: timer.as_mut().and_then(|t| t.writes(1)),
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -626,7 +633,7 @@ impl Renderer {
                 label: Some("render.blood_depth"),
                 color_attachments: &[Some(colour_att(&t.fluid_a, wgpu::Color::TRANSPARENT))],
                 depth_stencil_attachment: Some(depth_att(wgpu::LoadOp::Load)),
-                timestamp_writes: None,
+                timestamp_writes: timer.as_mut().and_then(|t| t.writes(2)),
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -639,15 +646,18 @@ impl Renderer {
         }
         // 4. bilateral filter A → B → A
         if blood && self.settings.filter_radius_px >= 1.0 {
-            for (label, pipe, read, write) in [
+            for (k, (label, pipe, read, write)) in [
                 ("render.filter_h", &self.filter_h, &t.read_a, &t.fluid_b),
                 ("render.filter_v", &self.filter_v, &t.read_b, &t.fluid_a),
-            ] {
+            ]
+            .into_iter()
+            .enumerate()
+            {
                 let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some(label),
                     color_attachments: &[Some(colour_att(write, wgpu::Color::TRANSPARENT))],
                     depth_stencil_attachment: None,
-                    timestamp_writes: None,
+                    timestamp_writes: timer.as_mut().and_then(|t| t.writes(3 + k)),
                     occlusion_query_set: None,
                     multiview_mask: None,
                 });
@@ -664,7 +674,7 @@ impl Renderer {
                 label: Some("render.composite"),
                 color_attachments: &[Some(colour_att(target, clear_colour))],
                 depth_stencil_attachment: None,
-                timestamp_writes: None,
+                timestamp_writes: timer.as_mut().and_then(|t| t.writes(5)),
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -673,7 +683,22 @@ impl Renderer {
             pass.set_bind_group(1, &t.read_a, &[]);
             pass.draw(0..3, 0..1);
         }
+        if let Some(tm) = timer {
+            tm.end_frame(encoder);
+        }
         Ok(())
+    }
+
+    /// Call after submitting the encoder of [`Renderer::draw`]: starts the timer's readback.
+    pub fn submitted(&mut self) {
+        if let Some(tm) = &mut self.timer {
+            tm.submitted();
+        }
+    }
+
+    /// GPU milliseconds per pass of the last timed frame (empty without timestamp queries).
+    pub fn pass_ms(&self) -> &[(&'static str, f64)] {
+        self.timer.as_ref().map_or(&[], |t| &t.last_ms)
     }
 
     /// The intermediate fluid textures of the last frame — filtered eye depth (R32Float) and

@@ -85,5 +85,6 @@ pub fn render_image(
     let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snapshot") });
     renderer.draw(&mut enc, &target.view, super::offscreen::OFFSCREEN_FORMAT, size, camera, &scene)?;
     ctx.queue.submit([enc.finish()]);
+    renderer.submitted();
     Ok(target.read(&ctx.device, &ctx.queue)?)
 }

@@ -53,6 +53,9 @@ pub struct Scenario {
     /// Frames and probes written by `perfuse run`.
     #[serde(default)]
     pub output: Output,
+    /// The patient: a closed-loop cardiovascular model that loses the blood leaving the organ.
+    #[serde(default)]
+    pub physiology: Option<Physiology>,
     /// Folder of the scenario file: relative mesh paths are resolved against it (set on load).
     #[serde(skip)]
     pub base_dir: Option<std::path::PathBuf>,
@@ -409,6 +412,23 @@ fn d_static() -> Motion {
 }
 fn d_mirror() -> PressureMode {
     PressureMode::Mirror
+}
+
+/// The cardiovascular model coupled to the organ (issue 7, `sim::physiology`): liquid that leaves the
+/// solid body is removed from the circulating volume, multiplied by `volume_scale` (simulated m³ →
+/// physiological m³; documented per scenario: a small or coarse organ stands for a larger bleeding one).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Physiology {
+    /// Model parameters; every field defaults to the literature value (`sim::cardio`).
+    #[serde(default)]
+    pub cardio: crate::sim::cardio::CardioParams,
+    /// Physiological volume per simulated volume of lost blood.
+    #[serde(default = "d_one")]
+    pub volume_scale: f64,
+}
+fn d_one() -> f64 {
+    1.0
 }
 
 /// Membrane (Glisson's capsule), thesis §3.1.2–3.1.3, SPEC §4.5: solid particles whose neighbourhood

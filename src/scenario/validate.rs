@@ -441,6 +441,18 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             }
         }
     }
+    if let Some(ph) = &s.physiology {
+        Check::range(
+            "physiology.volume_scale",
+            ph.volume_scale,
+            1e-3,
+            1e4,
+            "physiological per simulated volume, e.g. 10",
+        )?;
+        if let Err(e) = ph.cardio.validate() {
+            return Err(Check::fail("physiology.cardio", e.to_string(), "give a value in the stated range"));
+        }
+    }
     for (i, r) in s.fixed_regions.iter().enumerate() {
         check_region(&format!("fixed_regions[{i}]"), r)?;
         if s.solid.is_none() {

@@ -11,6 +11,7 @@ pub mod frame;
 pub mod gpu;
 pub mod kernels;
 pub mod params;
+pub mod physiology;
 pub mod state;
 
 use crate::scenario::{Motion, Scenario, ScenarioError, V3};
