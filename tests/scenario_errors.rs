@@ -233,3 +233,57 @@ fn shipped_scenarios_are_valid() {
     }
     assert!(n >= 5, "expected the validation scenarios, found {n}");
 }
+
+/// Organ meshes and the new sections: a missing mesh file, a mesh in a 2-D scenario, a mesh placed
+/// outside the domain, an absurd tool speed, a critical stretch below 1, a bad physiology scale.
+#[test]
+fn mesh_tool_fracture_and_physiology_errors() {
+    let liver_path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenarios/liver.ron");
+    let liver = std::fs::read_to_string(liver_path).expect("liver.ron");
+    let named = |text: &str| match Scenario::from_str_named(text, liver_path) {
+        Ok(_) => panic!("expected an error"),
+        Err(e) => e.to_string(),
+    };
+    let cases: [(&str, &str, &[&str]); 4] = [
+        ("\"../meshes/liver.obj\"", "\"../meshes/no_such_liver.obj\"", &["particles[0].file", "no_such_liver.obj"]),
+        (
+            "max_speed: 0.1))),\n        Boundary(name: \"indenter\"",
+            "max_speed: 500.0))),\n        Boundary(name: \"indenter\"",
+            &["tool.max_speed"],
+        ),
+        ("critical_stretch: Some(1.3)", "critical_stretch: Some(0.9)", &["solid.critical_stretch"]),
+        ("volume_scale: 10.0", "volume_scale: -1.0", &["physiology.volume_scale"]),
+    ];
+    for (from, to, needles) in cases {
+        assert!(liver.contains(from), "test bug: `{from}` not in liver.ron");
+        let msg = named(&liver.replacen(from, to, 1));
+        for n in needles {
+            assert!(msg.contains(n), "expected `{n}` in: {msg}");
+        }
+    }
+    // A mesh placed outside the domain.
+    let moved = liver.replacen(
+        "PerfusedMesh(file: \"../meshes/liver.obj\",",
+        "PerfusedMesh(file: \"../meshes/liver.obj\", placement: (translate: (0.5, 0.0, 0.0)),",
+        1,
+    );
+    assert_ne!(moved, liver);
+    let msg = named(&moved);
+    assert!(msg.contains("placement") && msg.contains("outside the domain"), "{msg}");
+    // A mesh generator in a 2-D scenario.
+    let flat = liver.replacen("dimensions: 3", "dimensions: 2", 1);
+    let msg = named(&flat);
+    assert!(msg.contains("3-D") || msg.contains("dimensions"), "{msg}");
+    // Garbage in the mesh file itself.
+    let dir = std::env::temp_dir().join(format!("perfuse-badmesh-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    std::fs::write(dir.join("bad.obj"), b"v 0 0 0\nf 1 2 3 4 5\n\x00\xff garbage").expect("write");
+    let sc_path = dir.join("s.ron");
+    let text = liver.replacen("\"../meshes/liver.obj\"", "\"bad.obj\"", 1);
+    let msg = match Scenario::from_str_named(&text, &sc_path.display().to_string()) {
+        Ok(_) => panic!("garbage mesh accepted"),
+        Err(e) => e.to_string(),
+    };
+    assert!(msg.contains("bad.obj") && msg.contains("particles[0].file"), "{msg}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

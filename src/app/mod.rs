@@ -119,6 +119,9 @@ struct Gfx {
     last_frame: Instant,
     stats: ui::FrameStats,
     screenshot_next: Option<PathBuf>,
+    /// Top of the scenario's material along the camera's up axis (generated once per scenario: the
+    /// liver's mesh sampling is too slow to repeat on every mouse move).
+    material_top: Option<f32>,
 }
 
 impl App {
@@ -224,6 +227,7 @@ impl App {
             last_frame: Instant::now(),
             stats,
             screenshot_next: None,
+            material_top: None,
         })
     }
 }
@@ -401,7 +405,7 @@ impl Gfx {
         let (dx_s, dx_l) = snapshot::spacings(&self.scenario);
         let up = self.camera.up;
         // Top of the tissue: the highest generated material point along `up`.
-        let top = self.material_top(up, origin);
+        let top = self.material_top.unwrap_or_else(|| self.compute_material_top(up, origin));
         let scene = tools::ToolScene {
             objects: &objects,
             origin,
@@ -414,7 +418,7 @@ impl Gfx {
         f(&scene)
     }
 
-    fn material_top(&self, up: Vec3, origin: [f64; 3]) -> f32 {
+    fn compute_material_top(&self, up: Vec3, origin: [f64; 3]) -> f32 {
         let g = crate::scenario::generate(&self.scenario);
         g.solid
             .pos
@@ -560,6 +564,8 @@ impl Gfx {
             if self.camera_fitted_for != fs.generation {
                 self.camera = self.fit_camera();
                 self.camera_fitted_for = fs.generation;
+                let origin = info.origin;
+                self.material_top = Some(self.compute_material_top(self.camera.up, origin));
             }
         }
         // egui
