@@ -4,19 +4,10 @@
 //! coupled to it; `perfuse vitals` runs it.
 
 use super::plot::{Chart, Series, line_chart};
-use crate::sim::cardio::{CardioError, CardioModel, CardioParams, Vitals};
-use std::io::Write;
+use crate::sim::cardio::{CardioError, CardioModel, CardioParams};
 use std::path::Path;
 
-/// One sample of the time series.
-#[derive(Clone, Copy, Debug, serde::Serialize)]
-pub struct VitalsSample {
-    pub t_s: f64,
-    /// Instantaneous hepatic arterial inflow [mL/s] (pulsatile).
-    pub hepatic_inflow_ml_s: f64,
-    pub arterial_pressure_mmhg: f64,
-    pub vitals: Vitals,
-}
+pub use crate::output::VitalsSample;
 
 /// Settles the heart, then removes `loss_fraction` of the blood volume uniformly over `over_s`
 /// seconds starting at `start_s`, sampling every `sample_s` up to `duration_s`.
@@ -57,32 +48,7 @@ pub fn scripted_hemorrhage(
 /// `hepatic_inflow.png` into `dir`.
 pub fn write_outputs(samples: &[VitalsSample], dir: &Path) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let csv = dir.join("vitals.csv");
-    let mut f = std::io::BufWriter::new(std::fs::File::create(&csv).map_err(|e| format!("{}: {e}", csv.display()))?);
-    let mut text = String::from(
-        "t_s,hepatic_inflow_ml_s,arterial_pressure_mmhg,map_mmhg,systolic_mmhg,diastolic_mmhg,hr_bpm,\
-         cardiac_output_l_min,blood_volume_ml,blood_lost_ml,blood_lost_fraction,shock_class,hepatic_flow_ml_min\n",
-    );
-    for s in samples {
-        let v = &s.vitals;
-        text.push_str(&format!(
-            "{:.4},{:.4},{:.3},{:.3},{:.3},{:.3},{:.3},{:.4},{:.2},{:.2},{:.5},{},{:.3}\n",
-            s.t_s,
-            s.hepatic_inflow_ml_s,
-            s.arterial_pressure_mmhg,
-            v.map_mmhg,
-            v.systolic_mmhg,
-            v.diastolic_mmhg,
-            v.hr_bpm,
-            v.cardiac_output_l_min,
-            v.blood_volume_ml,
-            v.blood_lost_ml,
-            v.blood_lost_fraction,
-            v.shock_class,
-            v.hepatic_flow_ml_min
-        ));
-    }
-    f.write_all(text.as_bytes()).map_err(|e| format!("{}: {e}", csv.display()))?;
+    crate::output::write_vitals_csv(&dir.join("vitals.csv"), samples).map_err(|e| e.to_string())?;
     let series = |label: &str, y: &dyn Fn(&VitalsSample) -> f64| Series {
         label: label.to_string(),
         points: samples.iter().map(|s| (s.t_s, y(s))).collect(),

@@ -243,35 +243,11 @@ fn tools_of(s: &Scenario) -> Vec<ToolKind> {
 /// An adapter that can present to `surface`: `PERFUSE_ADAPTER` if set, else hardware first, else the
 /// Vulkan software adapter (never GL).
 fn pick_adapter(instance: &wgpu::Instance, surface: &wgpu::Surface) -> Result<wgpu::Adapter, AppError> {
-    let adapters: Vec<wgpu::Adapter> = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
-        .into_iter()
-        .filter(|a| a.get_info().backend != wgpu::Backend::Gl && a.is_surface_supported(surface))
-        .collect();
-    let names = adapters.iter().map(|a| a.get_info().name).collect::<Vec<_>>().join(", ");
-    if let Ok(w) = std::env::var("PERFUSE_ADAPTER")
-        && !w.is_empty()
-    {
-        let wl = w.to_lowercase();
-        return adapters.into_iter().find(|a| a.get_info().name.to_lowercase().contains(&wl)).ok_or_else(|| {
-            AppError::Gpu(format!("PERFUSE_ADAPTER=`{w}` matches no adapter that can present; have: {names}"))
-        });
-    }
-    adapters
-        .into_iter()
-        .min_by_key(|a| match a.get_info().device_type {
-            wgpu::DeviceType::DiscreteGpu => 0,
-            wgpu::DeviceType::IntegratedGpu => 1,
-            wgpu::DeviceType::VirtualGpu => 2,
-            wgpu::DeviceType::Other => 3,
-            wgpu::DeviceType::Cpu => 4,
-        })
-        .ok_or_else(|| {
-            AppError::Gpu(
-                "no Vulkan/Metal/DX12 adapter can present to the window; install a Vulkan driver \
-                 (Debian: apt-get install mesa-vulkan-drivers libvulkan1)"
-                    .into(),
-            )
-        })
+    let wanted = std::env::var("PERFUSE_ADAPTER").ok().filter(|s| !s.is_empty());
+    crate::sim::gpu::device::select_adapter_where(instance, wanted.as_deref(), false, |a| {
+        a.is_surface_supported(surface)
+    })
+    .map_err(|e| AppError::Gpu(format!("no adapter can present to the window: {e}")))
 }
 
 impl ApplicationHandler for App {
@@ -399,8 +375,7 @@ impl Gfx {
 
     fn with_tool_scene<R>(&self, f: impl FnOnce(&tools::ToolScene) -> R) -> R {
         let (objects, origin) = self.tool_scene_data();
-        let to_sim =
-            |v: [f64; 3]| Vec3::new((v[0] - origin[0]) as f32, (v[1] - origin[1]) as f32, (v[2] - origin[2]) as f32);
+        let to_sim = |v: [f64; 3]| snapshot::to_sim(v, origin);
         let d = &self.scenario.domain;
         let (dx_s, dx_l) = snapshot::spacings(&self.scenario);
         let up = self.camera.up;
@@ -419,12 +394,9 @@ impl Gfx {
     }
 
     fn compute_material_top(&self, up: Vec3, origin: [f64; 3]) -> f32 {
-        let g = crate::scenario::generate(&self.scenario);
-        g.solid
-            .pos
+        snapshot::material_points(&self.scenario, origin)
             .iter()
-            .chain(g.liquid.pos.iter())
-            .map(|p| Vec3::new((p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32).dot(up))
+            .map(|p| p.dot(up))
             .fold(f32::NEG_INFINITY, f32::max)
             .max(-1e3)
     }
@@ -690,21 +662,12 @@ impl Gfx {
 
     fn fit_camera(&self) -> OrbitCamera {
         let origin = lock(&self.shared.published).info.origin;
-        let g = crate::scenario::generate(&self.scenario);
-        let to_sim =
-            |p: &[f64; 3]| Vec3::new((p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32);
-        let pts: Vec<Vec3> = g.solid.pos.iter().chain(g.liquid.pos.iter()).map(to_sim).collect();
         let flat = self.scenario.dimensions == 2;
-        let gv = Vec3::new(
-            self.scenario.gravity[0] as f32,
-            self.scenario.gravity[1] as f32,
-            self.scenario.gravity[2] as f32,
-        );
-        let up = if gv.z.abs() > gv.y.abs() && gv.z != 0.0 { Vec3::Z * -gv.z.signum() } else { Vec3::Y };
-        let (lo, hi) = match pts.first() {
-            Some(first) => pts.iter().fold((*first, *first), |(lo, hi), x| (lo.min(*x), hi.max(*x))),
-            None => (to_sim(&self.scenario.domain.min), to_sim(&self.scenario.domain.max)),
-        };
+        let up = snapshot::up_axis(self.scenario.gravity);
+        let (lo, hi) = snapshot::bounds(&snapshot::material_points(&self.scenario, origin)).unwrap_or((
+            snapshot::to_sim(self.scenario.domain.min, origin),
+            snapshot::to_sim(self.scenario.domain.max, origin),
+        ));
         let pad = (hi - lo) * 0.3 + Vec3::splat(1e-3);
         OrbitCamera::fit(lo - pad, hi + pad, flat, up)
     }

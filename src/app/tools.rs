@@ -87,6 +87,25 @@ impl ToolInput {
             .or_else(|| OrbitCamera::ray_plane(o, d, camera.target, camera.forward()))
     }
 
+    /// The selected tool's kind, object index, half extents and speed, if the scenario has it.
+    fn selected_tool(&self, scene: &ToolScene) -> Option<(ToolKind, usize, Vec3, f64)> {
+        let kind = self.selected?;
+        let (object, pose) = scene.object_of(kind)?;
+        Some((kind, object, ToolScene::half_extent(pose), pose.tool.as_ref().map_or(0.1, |t| t.max_speed)))
+    }
+
+    /// The tool centre under the cursor on the working plane, kept inside the domain.
+    fn target(
+        &self,
+        scene: &ToolScene,
+        camera: &OrbitCamera,
+        cursor: (f32, f32),
+        size: (f32, f32),
+        half: Vec3,
+    ) -> Option<Vec3> {
+        self.plane_point(scene, camera, cursor, size).map(|p| scene.clamp(p, half))
+    }
+
     /// Left button pressed over the 3-D view: engage the selected tool.
     pub fn press(
         &mut self,
@@ -95,10 +114,7 @@ impl ToolInput {
         cursor: (f32, f32),
         size: (f32, f32),
     ) -> Vec<Command> {
-        let Some(kind) = self.selected else { return Vec::new() };
-        let Some((object, pose)) = scene.object_of(kind) else { return Vec::new() };
-        let half = ToolScene::half_extent(pose);
-        let speed = pose.tool.as_ref().map_or(0.1, |t| t.max_speed);
+        let Some((kind, object, half, speed)) = self.selected_tool(scene) else { return Vec::new() };
         match kind {
             ToolKind::Projectile => {
                 // Load it where the view ray enters the domain and fire along the ray.
@@ -122,8 +138,7 @@ impl ToolInput {
                 // Start above the tissue: the working plane rests one tool size above the top.
                 self.height = half.dot(scene.up.abs()) + 2.0 * scene.dx;
                 self.dragging = true;
-                let Some(p) = self.plane_point(scene, camera, cursor, size) else { return Vec::new() };
-                let p = scene.clamp(p, half);
+                let Some(p) = self.target(scene, camera, cursor, size, half) else { return Vec::new() };
                 self.last_target = Some(p);
                 vec![Command::PlaceObject { object, position: scene.to_world(p) }]
             }
@@ -138,19 +153,15 @@ impl ToolInput {
         cursor: (f32, f32),
         size: (f32, f32),
     ) -> Vec<Command> {
-        let Some(kind) = self.selected.filter(|k| *k != ToolKind::Projectile) else { return Vec::new() };
-        if !self.dragging {
+        let Some((kind, object, half, speed)) = self.selected_tool(scene) else { return Vec::new() };
+        if kind == ToolKind::Projectile || !self.dragging {
             return Vec::new();
         }
-        let Some((object, pose)) = scene.object_of(kind) else { return Vec::new() };
-        let half = ToolScene::half_extent(pose);
-        let Some(p) = self.plane_point(scene, camera, cursor, size) else { return Vec::new() };
-        let p = scene.clamp(p, half);
+        let Some(p) = self.target(scene, camera, cursor, size, half) else { return Vec::new() };
         if self.last_target.is_some_and(|q| (q - p).length() < 0.25 * scene.dx) {
             return Vec::new();
         }
         self.last_target = Some(p);
-        let speed = pose.tool.as_ref().map_or(0.1, |t| t.max_speed);
         vec![Command::MoveObject { object, target: scene.to_world(p), speed }]
     }
 

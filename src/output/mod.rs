@@ -130,6 +130,44 @@ fn probe_value(state: &State, sel: &ProbeSel, origin: [f64; 3]) -> f64 {
     sum / sel.ids.len() as f64
 }
 
+/// One row of `vitals.csv`: the patient at simulated time `t_s`.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct VitalsSample {
+    pub t_s: f64,
+    /// Instantaneous hepatic arterial inflow [mL/s] (pulsatile).
+    pub hepatic_inflow_ml_s: f64,
+    pub arterial_pressure_mmhg: f64,
+    pub vitals: crate::sim::cardio::Vitals,
+}
+
+/// Writes `vitals.csv` (headless runs with `physiology`, `perfuse vitals`).
+pub fn write_vitals_csv(path: &Path, samples: &[VitalsSample]) -> Result<(), OutputError> {
+    let mut text = String::from(
+        "t_s,hepatic_inflow_ml_s,map_mmhg,systolic_mmhg,diastolic_mmhg,hr_bpm,cardiac_output_l_min,blood_lost_ml,\
+         blood_lost_fraction,shock_class,arterial_pressure_mmhg,blood_volume_ml,hepatic_flow_ml_min\n",
+    );
+    for s in samples {
+        let v = &s.vitals;
+        text.push_str(&format!(
+            "{:.6},{:.4},{:.3},{:.3},{:.3},{:.3},{:.4},{:.3},{:.5},{},{:.3},{:.2},{:.3}\n",
+            s.t_s,
+            s.hepatic_inflow_ml_s,
+            v.map_mmhg,
+            v.systolic_mmhg,
+            v.diastolic_mmhg,
+            v.hr_bpm,
+            v.cardiac_output_l_min,
+            v.blood_lost_ml,
+            v.blood_lost_fraction,
+            v.shock_class,
+            s.arterial_pressure_mmhg,
+            v.blood_volume_ml,
+            v.hepatic_flow_ml_min
+        ));
+    }
+    std::fs::write(path, text).map_err(io_err(path))
+}
+
 /// Writes one CSV frame: phase,id,x,y,z,vx,vy,vz,density,n_s,n_l,pressure (SI, world coordinates).
 pub fn write_frame_csv(path: &Path, state: &State, origin: [f64; 3]) -> Result<(), OutputError> {
     let f = std::fs::File::create(path).map_err(io_err(path))?;
@@ -185,11 +223,16 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     // The patient (issue 7): sampled with every state read back (frames, probes, the end).
     let rho0_l = scenario.liquid.as_ref().map_or(1000.0, |l| l.density);
     let mut patient = scenario.physiology.as_ref().map(crate::sim::physiology::Patient::new).transpose()?;
-    let mut vitals_rows: Vec<(f64, f64, crate::sim::cardio::Vitals)> = Vec::new();
-    let mut sample_patient = |st: &State, rows: &mut Vec<(f64, f64, crate::sim::cardio::Vitals)>| {
+    let mut vitals_rows: Vec<VitalsSample> = Vec::new();
+    let mut sample_patient = |st: &State, rows: &mut Vec<VitalsSample>| {
         if let Some(p) = &mut patient {
-            let v = p.update(st, rho0_l);
-            rows.push((st.t, p.model.hepatic_flow_m3_s(), v));
+            let vitals = p.update(st, rho0_l);
+            rows.push(VitalsSample {
+                t_s: st.t,
+                hepatic_inflow_ml_s: p.model.hepatic_flow_m3_s() * 1e6,
+                arterial_pressure_mmhg: p.model.arterial_pressure_mmhg(),
+                vitals,
+            });
         }
     };
     sample_patient(&s0, &mut vitals_rows);
@@ -283,7 +326,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     }
     let wall_run = run_start.elapsed().as_secs_f64();
     let fin = sim.read_state()?;
-    if vitals_rows.last().is_none_or(|r| fin.t > r.0) {
+    if vitals_rows.last().is_none_or(|r| fin.t > r.t_s) {
         sample_patient(&fin, &mut vitals_rows);
     }
     let (model_hepatic, lost_sim) =
@@ -291,26 +334,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     if let Some(dir) = &opts.out
         && !vitals_rows.is_empty()
     {
-        let path = dir.join("vitals.csv");
-        let mut text = String::from(
-            "t_s,hepatic_inflow_ml_s,map_mmhg,systolic_mmhg,diastolic_mmhg,hr_bpm,cardiac_output_l_min,\
-             blood_lost_ml,blood_lost_fraction,shock_class\n",
-        );
-        for (t, q, v) in &vitals_rows {
-            text.push_str(&format!(
-                "{t:.6},{:.4},{:.3},{:.3},{:.3},{:.3},{:.4},{:.3},{:.5},{}\n",
-                q * 1e6,
-                v.map_mmhg,
-                v.systolic_mmhg,
-                v.diastolic_mmhg,
-                v.hr_bpm,
-                v.cardiac_output_l_min,
-                v.blood_lost_ml,
-                v.blood_lost_fraction,
-                v.shock_class
-            ));
-        }
-        std::fs::write(&path, text).map_err(io_err(&path))?;
+        write_vitals_csv(&dir.join("vitals.csv"), &vitals_rows)?;
     }
     // The final state: frame_00000.csv when the scenario asks for no frames; otherwise `final.csv`
     // when it falls between frame times, so that frame_*.csv stay uniformly spaced (DMD relies on it).
@@ -376,10 +400,10 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         frames_written: frames,
         frame_interval_s: frame_dt,
         frame_times_s: frame_times,
-        blood_lost_ml: vitals_rows.last().map(|r| r.2.blood_lost_ml),
+        blood_lost_ml: vitals_rows.last().map(|r| r.vitals.blood_lost_ml),
         blood_outside_organ_m3: lost_sim,
         model_hepatic_volume_m3: model_hepatic,
-        vitals_final: vitals_rows.last().map(|r| r.2),
+        vitals_final: vitals_rows.last().map(|r| r.vitals),
     };
     if let Some(dir) = &opts.out {
         let path = dir.join("summary.json");

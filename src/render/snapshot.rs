@@ -49,20 +49,36 @@ pub fn default_camera(sim: &Simulation) -> OrbitCamera {
             max = hi + pad;
         }
     }
-    let g = p.gravity;
-    let up = if g.length() > 0.0 { -g.normalize() } else { Vec3::Y };
-    // Snap to the nearest axis so the horizon stays level.
-    let up = if up.z.abs() > up.y.abs() { Vec3::Z * up.z.signum() } else { Vec3::Y };
-    OrbitCamera::fit(min, max, flat, up)
+    OrbitCamera::fit(min, max, flat, up_axis(sim.scenario().gravity))
 }
 
-/// Bounds of the generated particles (simulation coordinates), from the scenario's generators.
+/// The camera's up axis: against gravity, snapped to +y or ±z so the horizon stays level (+y without
+/// gravity).
+pub fn up_axis(gravity: crate::scenario::V3) -> Vec3 {
+    let g = Vec3::new(gravity[0] as f32, gravity[1] as f32, gravity[2] as f32);
+    if g.z.abs() > g.y.abs() && g.z != 0.0 { Vec3::Z * -g.z.signum() } else { Vec3::Y }
+}
+
+/// Scenario coordinates → simulation coordinates (relative to `origin`).
+pub fn to_sim(p: [f64; 3], origin: [f64; 3]) -> Vec3 {
+    Vec3::new((p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32)
+}
+
+/// The generated material particles (liquid and solid) of a scenario, in simulation coordinates.
+pub fn material_points(s: &Scenario, origin: [f64; 3]) -> Vec<Vec3> {
+    let g = crate::scenario::generate(s);
+    g.liquid.pos.iter().chain(g.solid.pos.iter()).map(|x| to_sim(*x, origin)).collect()
+}
+
+/// Bounding box of `points`.
+pub fn bounds(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
+    let first = *points.first()?;
+    Some(points.iter().fold((first, first), |(lo, hi), x| (lo.min(*x), hi.max(*x))))
+}
+
+/// Bounds of the generated particles (simulation coordinates).
 fn material_bounds(sim: &Simulation) -> Option<(Vec3, Vec3)> {
-    let g = crate::scenario::generate(sim.scenario());
-    let p = sim.params();
-    let pts: Vec<Vec3> = g.liquid.pos.iter().chain(g.solid.pos.iter()).map(|x| p.to_sim(*x)).collect();
-    let first = *pts.first()?;
-    Some(pts.iter().fold((first, first), |(lo, hi), x| (lo.min(*x), hi.max(*x))))
+    bounds(&material_points(sim.scenario(), sim.params().origin))
 }
 
 /// Renders the simulation's current state into an image of `size` on the device of `ctx` (which

@@ -114,9 +114,20 @@ pub fn select_adapter(
     wanted: Option<&str>,
     prefer_software: bool,
 ) -> Result<wgpu::Adapter, GpuError> {
+    select_adapter_where(instance, wanted, prefer_software, |_| true)
+}
+
+/// [`select_adapter`] among the adapters `accept` lets through (the viewer: those that can present to
+/// its window).
+pub fn select_adapter_where(
+    instance: &wgpu::Instance,
+    wanted: Option<&str>,
+    prefer_software: bool,
+    accept: impl Fn(&wgpu::Adapter) -> bool,
+) -> Result<wgpu::Adapter, GpuError> {
     let adapters: Vec<wgpu::Adapter> = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
         .into_iter()
-        .filter(|a| a.get_info().backend != wgpu::Backend::Gl)
+        .filter(|a| a.get_info().backend != wgpu::Backend::Gl && accept(a))
         .collect();
     let available = adapters
         .iter()
