@@ -118,6 +118,13 @@ fn batch_motion() {
         o._pad = 0u;
         objects[k] = o;
     }
+    // Inlet buffer velocities u(tⁿ⁺¹) = direction · Q(tⁿ⁺¹) · L/(N·V_p) (twin: emit::emit_velocities).
+    let t = tn.x + tn.y;
+    for (var e = 0u; e < emit_state.n_emitters; e = e + 1u) {
+        let d = emit_state.emitters[e].dir;
+        let speed = flow_at(e, t) * d.w;
+        emit_state.emitters[e].velocity = vec4<f32>(d.x * speed, d.y * speed, d.z * speed, 0.0);
+    }
 }
 
 // End of a step: record it (Δt, criterion, broken bonds), commit the clock, and stop the batch on

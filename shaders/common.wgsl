@@ -153,6 +153,12 @@ struct BatchState {
     bad_solid: u32,
     broken_ends: u32,
     fail_dt: f32,
+    // live liquid particles, and particles emitted / sunk since t = 0 (emit.wgsl)
+    n_liquid: u32,
+    emitted: u32,
+    sunk: u32,
+    // an emitter found the liquid capacity full during this batch
+    capacity_hit: u32,
     _pad0: u32,
     _pad1: u32,
     _pad2: u32,
@@ -161,6 +167,52 @@ struct BatchState {
     // per step of the batch: Δt and its limiting criterion
     dt: array<f32, 64>,
     limit: array<u32, 64>,
+}
+
+// Mirrors `EmitterGpu`: one inlet (emit.wgsl, twin `sim::cpu::emit::Emitter`).
+struct EmitterGpu {
+    // xyz: unit inflow direction, w: buffer speed per unit flow L/(N·V_p)
+    dir: vec4<f32>,
+    // buffer velocity u(tⁿ⁺¹) (batch_motion)
+    velocity: vec4<f32>,
+    // buffer region: box [a, b] or sphere centre a, radius b.x
+    region_a: vec4<f32>,
+    region_b: vec4<f32>,
+    slot_start: u32,
+    slot_count: u32,
+    cursor: u32,
+    count: u32,
+    mass: f32,
+    // m/ρ₀ [m³]
+    volume: f32,
+    // volume owed and not yet placed [m³]
+    acc: f32,
+    region_kind: u32,
+}
+
+// Mirrors `SinkGpu`: a sink region (box [a, b] or sphere centre a, radius b.x).
+struct SinkGpu {
+    a: vec4<f32>,
+    b: vec4<f32>,
+    kind: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+// Mirrors `EmitStateGpu`: emitters, sinks and the liquid capacity.
+struct EmitState {
+    n_emitters: u32,
+    n_sinks: u32,
+    n_slots: u32,
+    capacity: u32,
+    id_base: u32,
+    sink_hits: atomic<u32>,
+    // (BLOCK_FACTOR·Δx_l)²
+    block_r2: f32,
+    _pad0: u32,
+    emitters: array<EmitterGpu, 8>,
+    sinks: array<SinkGpu, 8>,
 }
 
 // Mirrors `Mat3Gpu`: glam's column-major Mat3, one vec4 per column (w unused).
@@ -259,6 +311,78 @@ const JACOBI_SWEEPS: u32 = 6u;
 @group(0) @binding(39) var<storage, read_write> indirect_args: array<u32>;
 // squared breaking length of each bond slot (layout of bond_table): max(R², (λ_c r₀)²)
 @group(0) @binding(40) var<storage, read_write> bond_limit: array<f32>;
+// emitters and sinks (emit.wgsl): state, slot positions, slot blocked flags, flow tables
+@group(0) @binding(41) var<storage, read_write> emit_state: EmitState;
+@group(0) @binding(42) var<storage, read_write> emit_slots: array<vec4<f32>>;
+@group(0) @binding(43) var<storage, read_write> emit_blocked: array<atomic<u32>>;
+// per emitter FLOW_STRIDE floats: [entries (bits), period, 0, 0, times[FLOW_MAX], rates[FLOW_MAX]]
+@group(0) @binding(44) var<storage, read_write> emit_flow: array<f32>;
+// liquid particle ids (emitted particles get new ids; sinks compact the arrays)
+@group(0) @binding(45) var<storage, read_write> liquid_id: array<u32>;
+
+// ---- emitters (twin: src/sim/cpu/emit.rs) ----
+const FLOW_MAX: u32 = 1024u;
+// 4 + 2·FLOW_MAX floats per emitter in `emit_flow`
+const FLOW_STRIDE: u32 = 2052u;
+
+fn in_region(kind: u32, a: vec3<f32>, b: vec3<f32>, x: vec3<f32>, three_d: bool) -> bool {
+    if (kind == 0u) {
+        let inside_xy = x.x >= a.x && x.x <= b.x && x.y >= a.y && x.y <= b.y;
+        return inside_xy && (!three_d || (x.z >= a.z && x.z <= b.z));
+    }
+    let d = x - a;
+    var r2 = d.x * d.x + d.y * d.y;
+    if (three_d) {
+        r2 = r2 + d.z * d.z;
+    }
+    return r2 <= b.x * b.x;
+}
+
+// Q(t) of emitter e (twin of `FlowTable::rate_at`).
+fn flow_at(e: u32, t: f32) -> f32 {
+    let base = e * FLOW_STRIDE;
+    let n = min(bitcast<u32>(emit_flow[base]), FLOW_MAX);
+    if (n == 0u) {
+        return 0.0;
+    }
+    let period = emit_flow[base + 1u];
+    let tb = base + 4u;
+    let qb = base + 4u + FLOW_MAX;
+    var tt = t;
+    if (period > 0.0) {
+        tt = t - period * floor(t / period);
+    }
+    if (tt <= emit_flow[tb]) {
+        return emit_flow[qb];
+    }
+    if (tt >= emit_flow[tb + n - 1u]) {
+        return emit_flow[qb + n - 1u];
+    }
+    var lo = 0u;
+    var hi = n - 1u;
+    while (hi - lo > 1u) {
+        let mid = (lo + hi) / 2u;
+        if (emit_flow[tb + mid] <= tt) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let w = (tt - emit_flow[tb + lo]) / (emit_flow[tb + hi] - emit_flow[tb + lo]);
+    return emit_flow[qb + lo] + (emit_flow[qb + hi] - emit_flow[qb + lo]) * w;
+}
+
+// Buffer velocity of the first inlet containing x (xyz) and 1 in w, or w = 0 outside every inlet.
+fn inlet_velocity(x: vec3<f32>) -> vec4<f32> {
+    let three_d = params.switches.x != 0u;
+    for (var e = 0u; e < emit_state.n_emitters; e = e + 1u) {
+        let em = emit_state.emitters[e];
+        if (in_region(em.region_kind, em.region_a.xyz, em.region_b.xyz, x, three_d)) {
+            return vec4<f32>(em.velocity.xyz, 1.0);
+        }
+    }
+    return vec4<f32>(0.0);
+}
 
 // ---- small helpers mirroring glam (same operation order) ----
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {

@@ -25,7 +25,7 @@ fn wrap_periodic(x_in: vec3<f32>) -> vec3<f32> {
     return x;
 }
 
-// a⁰ ← a, v^p = vⁿ + Δt a⁰ (2.64).
+// a⁰ ← a, v^p = vⁿ + Δt a⁰ (2.64); inside an inlet's buffer: a⁰ = 0, v = u (emit.wgsl).
 @compute @workgroup_size(64)
 fn integrate_predict_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
@@ -33,6 +33,12 @@ fn integrate_predict_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let dt = step.dt;
+    let u = inlet_velocity(liquid_pos[i].xyz);
+    if (u.w != 0.0) {
+        liquid_acc0[i] = vec4<f32>(0.0);
+        liquid_vel[i] = vec4<f32>(u.xyz, 0.0);
+        return;
+    }
     let a = liquid_acc[i];
     liquid_acc0[i] = a;
     liquid_vel[i] = vec4<f32>(liquid_vel[i].xyz + a.xyz * dt, 0.0);
@@ -71,7 +77,12 @@ fn integrate_advance_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dt = step.dt;
     let half_dt2 = 0.5 * dt * dt;
     let p = liquid_pos[i];
-    let x = wrap_periodic(p.xyz + liquid_vel_adv[i].xyz * dt + liquid_acc0[i].xyz * half_dt2);
+    let u = inlet_velocity(p.xyz);
+    var adv = liquid_vel_adv[i].xyz;
+    if (u.w != 0.0) {
+        adv = u.xyz;
+    }
+    let x = wrap_periodic(p.xyz + adv * dt + liquid_acc0[i].xyz * half_dt2);
     liquid_pos[i] = vec4<f32>(x, p.w);
 }
 
@@ -111,6 +122,11 @@ fn integrate_correct_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let dt = step.dt;
+    let u = inlet_velocity(liquid_pos[i].xyz);
+    if (u.w != 0.0) {
+        liquid_vel[i] = vec4<f32>(u.xyz, 0.0);
+        return;
+    }
     let damp = max(1.0 - params.damping * dt, 0.0);
     let v = liquid_vel[i].xyz;
     liquid_vel[i] = vec4<f32>((v + (liquid_acc[i].xyz - liquid_acc0[i].xyz) * (0.5 * dt)) * damp, 0.0);

@@ -287,3 +287,30 @@ fn mesh_tool_fracture_and_physiology_errors() {
     assert!(msg.contains("bad.obj") && msg.contains("particles[0].file"), "{msg}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn emitter_and_sink_errors() {
+    let with = |emitter: &str| edit("duration: 0.1,", &format!("duration: 0.1, {emitter}"));
+    let inlet = |flow: &str, dir: &str| {
+        with(&format!(
+            "emitters: [ Emitter(name: \"in\", region: Box(min: (0.0, -0.01, 0.0), max: (0.001, 0.01, 0.0)), direction: {dir}, flow: {flow}) ],"
+        ))
+    };
+    Scenario::from_str_named(&inlet("Constant(1e-6)", "(1.0, 0.0, 0.0)"), "ok.ron").expect("a valid inlet");
+    expect(&inlet("Constant(-1e-6)", "(1.0, 0.0, 0.0)"), &["emitters[0].flow", "m³/s"]);
+    expect(&inlet("Constant(1e-6)", "(0.0, 0.0, 1.0)"), &["emitters[0].direction", "zero"]);
+    expect(&inlet("Table(times: [0.0, 0.0], rates: [1e-6, 1e-6])", "(1.0, 0.0, 0.0)"), &["times[1]", "increasing"]);
+    expect(&inlet("Table(times: [0.0, 1.0], rates: [1e-6])", "(1.0, 0.0, 0.0)"), &["times", "one rate per time"]);
+    expect(&inlet("Hepatic", "(1.0, 0.0, 0.0)"), &["physiology", "Hepatic"]);
+    expect(
+        &with(
+            "emitters: [ Emitter(name: \"in\", region: Box(min: (0.0, 0.0, 0.0), max: (0.0001, 0.01, 0.0)), direction: (1.0, 0.0, 0.0), flow: Constant(1e-6)) ],",
+        ),
+        &["emitters[0].region", "no lattice site"],
+    );
+    expect(&with("liquid_capacity: Some(0),"), &["liquid_capacity", "out of range"]);
+    expect(
+        &with("sinks: [ Sink(name: \"out\", region: Sphere(centre: (0.005, 0.0, 0.0), radius: -1.0)) ],"),
+        &["sinks[0].region.radius"],
+    );
+}

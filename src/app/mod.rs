@@ -575,7 +575,9 @@ impl Gfx {
             self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("viewer.frame") });
         let (dx_solid, dx_liquid) = snapshot::spacings(&self.scenario);
         let particles = match (&frames, &self.bind_groups) {
-            (Some(fs), Some((_, groups))) => Some((&groups[front], fs.sets[front].n_liquid, fs.sets[front].n_solid)),
+            (Some(fs), Some((_, groups))) => {
+                Some((&groups[front], info.n_liquid.min(fs.sets[front].n_liquid), fs.sets[front].n_solid))
+            }
             _ => None,
         };
         let scene = Scene { particles, objects: &info.objects, origin: info.origin, dx_solid, dx_liquid };

@@ -261,6 +261,20 @@ impl Runner {
     /// Takes up to `steps` steps (stopping at the end of the relaxation), updating the status.
     fn advance(&mut self, steps: u32) {
         let Some(rs) = &mut self.sim else { return };
+        // The patient's hepatic flow feeds the `Hepatic` inlets (after the relaxation, as headless
+        // runs do): a table renewed half a horizon before it runs out, recorded like every command.
+        if let Some(p) = self.patient.as_mut()
+            && self.relax_end.is_none()
+            && rs.sim.time() + 0.5 * crate::sim::physiology::INFLOW_HORIZON_S >= p.inflow_until()
+        {
+            let t = rs.sim.time();
+            for k in rs.sim.hepatic_emitters() {
+                let cmd = p.inflow(k, t, t.max(0.0) + crate::sim::physiology::INFLOW_HORIZON_S);
+                if let Err(e) = rs.apply(&cmd) {
+                    lock(&self.shared.status).error = Some(e.to_string());
+                }
+            }
+        }
         let t0 = rs.sim.time();
         let t_end = self.relax_end.unwrap_or(f64::INFINITY);
         let start = Instant::now();
@@ -299,6 +313,7 @@ impl Runner {
         }
         st.steps = rs.sim.stats().steps;
         st.broken_bonds = rs.sim.stats().broken_bonds;
+        (st.n_liquid, st.n_solid) = rs.sim.particle_counts();
         st.steps_per_s = self.rate.steps_per_s;
         st.real_time_factor = self.rate.rtf;
         // End of the relaxation: undamped from t = 0.

@@ -78,6 +78,15 @@ pub struct Summary {
     pub blood_outside_organ_m3: Option<f64>,
     pub model_hepatic_volume_m3: Option<f64>,
     pub vitals_final: Option<crate::sim::cardio::Vitals>,
+    /// Liquid volume added by the emitters, Σ m/ρ₀ [m³] (0 without emitters).
+    pub emitted_volume_m3: f64,
+    /// With a `Hepatic` emitter: the model's hepatic inflow over the run in simulated volume
+    /// (÷ volume_scale) [m³], what `emitted_volume_m3` should match.
+    pub hepatic_inflow_sim_m3: Option<f64>,
+    /// Emitter and sink totals (particles emitted, sunk, per emitter; backlog; capacity).
+    pub emitters: crate::sim::EmitTotals,
+    /// Initial + emitted − sunk − live liquid particles: 0 when every liquid particle is accounted for.
+    pub liquid_balance: i64,
 }
 
 /// How long a headless run goes.
@@ -224,8 +233,13 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     let rho0_l = scenario.liquid.as_ref().map_or(1000.0, |l| l.density);
     let mut patient = scenario.physiology.as_ref().map(crate::sim::physiology::Patient::new).transpose()?;
     let mut vitals_rows: Vec<VitalsSample> = Vec::new();
-    let mut sample_patient = |st: &State, rows: &mut Vec<VitalsSample>| {
-        if let Some(p) = &mut patient {
+    fn sample_patient(
+        patient: &mut Option<crate::sim::physiology::Patient>,
+        st: &State,
+        rho0_l: f64,
+        rows: &mut Vec<VitalsSample>,
+    ) {
+        if let Some(p) = patient {
             let vitals = p.update(st, rho0_l);
             rows.push(VitalsSample {
                 t_s: st.t,
@@ -234,8 +248,23 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
                 vitals,
             });
         }
+    }
+    // The hepatic emitters follow the patient's model (tables renewed a horizon ahead).
+    let hepatic = sim.hepatic_emitters();
+    let drive_inflow = |sim: &mut Simulation, patient: &mut Option<crate::sim::physiology::Patient>| {
+        if let Some(p) = patient
+            && !hepatic.is_empty()
+            && sim.time() + 0.5 * crate::sim::physiology::INFLOW_HORIZON_S >= p.inflow_until()
+        {
+            let t = sim.time();
+            for &k in &hepatic {
+                let cmd = p.inflow(k, t, t.max(0.0) + crate::sim::physiology::INFLOW_HORIZON_S);
+                sim.apply(&cmd)?;
+            }
+        }
+        Ok::<(), crate::sim::SimError>(())
     };
-    sample_patient(&s0, &mut vitals_rows);
+    sample_patient(&mut patient, &s0, rho0_l, &mut vitals_rows);
     let d = scenario.dimensions;
     let probes: Vec<ProbeSel> = scenario
         .output
@@ -281,6 +310,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     while divergence.is_none() && sim.time() < t_end && steps < max_steps {
         // One chunk (one GPU batch) up to the next frame, probe or end time: a frame or probe is taken
         // at the first step at or after its time, as with single steps.
+        drive_inflow(&mut sim, &mut patient)?;
         let target = (next_frame - 1e-12).min(next_probe - 1e-12).min(t_end);
         let chunk = (max_steps - steps).min(u64::from(crate::sim::ADVANCE_CHUNK)) as u32;
         let result = if target > sim.time() { sim.advance(chunk, target) } else { sim.advance(1, f64::INFINITY) };
@@ -290,7 +320,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
                 let t = adv.t;
                 if t >= next_frame - 1e-12 || t >= next_probe - 1e-12 {
                     let st = sim.read_state()?;
-                    sample_patient(&st, &mut vitals_rows);
+                    sample_patient(&mut patient, &st, rho0_l, &mut vitals_rows);
                     if t >= next_probe - 1e-12 {
                         probe_rows.push((st.t, probes.iter().map(|p| probe_value(&st, p, origin)).collect()));
                         while next_probe <= t {
@@ -327,10 +357,18 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     let wall_run = run_start.elapsed().as_secs_f64();
     let fin = sim.read_state()?;
     if vitals_rows.last().is_none_or(|r| fin.t > r.t_s) {
-        sample_patient(&fin, &mut vitals_rows);
+        sample_patient(&mut patient, &fin, rho0_l, &mut vitals_rows);
     }
-    let (model_hepatic, lost_sim) =
-        patient.as_ref().map_or((None, None), |p| (Some(p.model.hepatic_volume_m3()), Some(p.lost_simulated_m3())));
+    let (model_hepatic, lost_sim) = patient.as_ref().map_or((None, None), |p| {
+        // the model runs ahead of the organ when it drives the inflow: its integral at the end time
+        let v = p.hepatic_inflow_sim_m3(fin.t).map_or(p.model.hepatic_volume_m3(), |v| v * p.volume_scale());
+        (Some(v), Some(p.lost_simulated_m3()))
+    });
+    let hepatic_inflow_sim =
+        if hepatic.is_empty() { None } else { patient.as_ref().and_then(|p| p.hepatic_inflow_sim_m3(fin.t)) };
+    let emit_totals = sim.emit_totals()?;
+    let liquid_balance =
+        s0.liquid.len() as i64 + emit_totals.emitted as i64 - emit_totals.sunk as i64 - fin.liquid.len() as i64;
     if let Some(dir) = &opts.out
         && !vitals_rows.is_empty()
     {
@@ -371,7 +409,13 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         liquid_end_kg: fin.liquid.total_mass(),
         solid_start_kg: s0.solid.total_mass(),
         solid_end_kg: fin.solid.total_mass(),
-        conserved: s0.liquid.total_mass() == fin.liquid.total_mass() && s0.solid.total_mass() == fin.solid.total_mass(),
+        // with emitters or sinks the liquid changes by what they added and removed, to the particle
+        conserved: s0.solid.total_mass() == fin.solid.total_mass()
+            && if emit_totals.emitted + emit_totals.sunk > 0 {
+                liquid_balance == 0
+            } else {
+                s0.liquid.total_mass() == fin.liquid.total_mass()
+            },
     };
     let components = fin.solid_component_sizes();
     let summary = Summary {
@@ -404,6 +448,10 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         blood_outside_organ_m3: lost_sim,
         model_hepatic_volume_m3: model_hepatic,
         vitals_final: vitals_rows.last().map(|r| r.vitals),
+        emitted_volume_m3: emit_totals.emitted_volume_m3,
+        hepatic_inflow_sim_m3: hepatic_inflow_sim,
+        emitters: emit_totals,
+        liquid_balance,
     };
     if let Some(dir) = &opts.out {
         let path = dir.join("summary.json");

@@ -96,8 +96,13 @@ pub fn render_image(
     let group = renderer.bind_frame(&frame);
     let target = Offscreen::new(&ctx.device, size)?;
     let (dx_solid, dx_liquid) = spacings(sim.scenario());
-    let scene =
-        Scene { particles: Some((&group, nl, ns)), objects: &info.objects, origin: info.origin, dx_solid, dx_liquid };
+    let scene = Scene {
+        particles: Some((&group, info.n_liquid.min(nl), ns)),
+        objects: &info.objects,
+        origin: info.origin,
+        dx_solid,
+        dx_liquid,
+    };
     let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snapshot") });
     renderer.draw(&mut enc, &target.view, super::offscreen::OFFSCREEN_FORMAT, size, camera, &scene)?;
     ctx.queue.submit([enc.finish()]);

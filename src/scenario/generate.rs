@@ -56,7 +56,31 @@ pub struct GeneratedParticles {
     pub mass_solid: f64,
     pub fraction_liquid: f64,
     pub fraction_solid: f64,
+    /// Inlets (scenario `emitters`), in scenario order.
+    pub emitters: Vec<EmitterSlots>,
+    /// Sink regions (scenario `sinks`).
+    pub sinks: Vec<Region>,
+    /// Most liquid particles the back-ends make room for (≥ the initial liquid).
+    pub liquid_capacity: usize,
 }
+
+/// One inlet as generated: its slots (lattice sites inside the region, absolute coordinates), the mass
+/// and velocity of the particles it adds, and its flow.
+#[derive(Clone, Debug)]
+pub struct EmitterSlots {
+    pub name: String,
+    pub region: Region,
+    pub slots: Vec<V3>,
+    pub mass: f64,
+    /// Unit inflow direction (z = 0 in 2-D).
+    pub direction: V3,
+    /// Depth L of the slot lattice along `direction` (extent of the slots' projections + Δx_l) [m].
+    pub depth: f64,
+    pub flow: super::Flow,
+}
+
+/// Extra liquid capacity for emitters when the scenario gives no `liquid_capacity`.
+pub const DEFAULT_EMITTER_ROOM: usize = 20_000;
 
 /// Number of lattice points `lattice_points` would produce (used by validation).
 pub fn lattice_count(region: &Region, dx: f64, d: usize) -> usize {
@@ -167,6 +191,12 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             }
         }
     }
+    // Without liquid generators the emitted liquid sets n₀ (boundary masses depend on it).
+    if g.fraction_liquid == 0.0
+        && let Some(e) = s.emitters.first()
+    {
+        g.fraction_liquid = e.fraction.unwrap_or(1.0);
+    }
     if let Some(l) = &s.liquid
         && g.dx_liquid > 0.0
     {
@@ -266,6 +296,36 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             tool: b.tool.clone(),
         });
     }
+    for e in &s.emitters {
+        let mass = match (&s.liquid, e.fraction) {
+            (Some(l), Some(fr)) if g.dx_liquid > 0.0 => {
+                fr * l.density / lattice_poly6_sum(g.dx_liquid, 2.0 * g.h_liquid, dim)
+            }
+            _ => g.mass_liquid,
+        };
+        let mut dir = if d == 2 { [e.direction[0], e.direction[1], 0.0] } else { e.direction };
+        let len = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        if len > 0.0 {
+            dir = [dir[0] / len, dir[1] / len, dir[2] / len];
+        }
+        let slots = lattice_points(&e.region, g.dx_liquid, d);
+        let proj = |p: &V3| p[0] * dir[0] + p[1] * dir[1] + p[2] * dir[2];
+        let lo = slots.iter().map(proj).fold(f64::INFINITY, f64::min);
+        let hi = slots.iter().map(proj).fold(f64::NEG_INFINITY, f64::max);
+        let depth = if slots.is_empty() { 0.0 } else { hi - lo + g.dx_liquid };
+        g.emitters.push(EmitterSlots {
+            name: e.name.clone(),
+            region: e.region.clone(),
+            slots,
+            mass,
+            direction: dir,
+            depth,
+            flow: e.flow.clone(),
+        });
+    }
+    g.sinks = s.sinks.iter().map(|k| k.region.clone()).collect();
+    let room = if s.emitters.is_empty() { 0 } else { DEFAULT_EMITTER_ROOM };
+    g.liquid_capacity = s.liquid_capacity.map_or(g.liquid.pos.len() + room, |c| c as usize);
     g
 }
 

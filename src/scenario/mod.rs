@@ -11,8 +11,8 @@ mod schema;
 mod validate;
 
 pub use generate::{
-    BoundaryObject, GeneratedParticles, PhaseParticles, SolidFlags, cantilever_mode, generate, lattice_points,
-    motion_at,
+    BoundaryObject, DEFAULT_EMITTER_ROOM, EmitterSlots, GeneratedParticles, PhaseParticles, SolidFlags,
+    cantilever_mode, generate, lattice_points, motion_at,
 };
 pub use schema::*;
 
@@ -129,6 +129,11 @@ fn syntax_error(e: ron::error::SpannedError, path: &str) -> ScenarioError {
 }
 
 fn parse_override_value(text: &str) -> Result<serde_json::Value, String> {
+    // Integers stay integers (counts such as `liquid_capacity`); serde turns them into floats where a
+    // float is expected.
+    if let Ok(n) = text.parse::<i64>() {
+        return Ok(serde_json::Value::from(n));
+    }
     if let Ok(x) = text.parse::<f64>() {
         if !x.is_finite() {
             return Err(format!("`{text}` is not a finite number"));

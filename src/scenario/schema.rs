@@ -56,6 +56,16 @@ pub struct Scenario {
     /// The patient: a closed-loop cardiovascular model that loses the blood leaving the organ.
     #[serde(default)]
     pub physiology: Option<Physiology>,
+    /// Liquid sources: inlets that add particles at a prescribed volume flow (thesis §3.1.5, §4.2.4).
+    #[serde(default)]
+    pub emitters: Vec<Emitter>,
+    /// Liquid sinks: regions that remove the liquid particles entering them (outlets, a syringe barrel).
+    #[serde(default)]
+    pub sinks: Vec<Sink>,
+    /// Most liquid particles the run may hold (emitters stop at it, with a warning). Default: the
+    /// initial liquid plus 20 000 when there are emitters.
+    #[serde(default)]
+    pub liquid_capacity: Option<u64>,
     /// Folder of the scenario file: relative mesh paths are resolved against it (set on load).
     #[serde(skip)]
     pub base_dir: Option<std::path::PathBuf>,
@@ -413,6 +423,57 @@ fn d_static() -> Motion {
 fn d_mirror() -> PressureMode {
     PressureMode::Mirror
 }
+
+/// An inlet (a vessel's stump, a pipe's end): a buffer region whose liquid moves as a kinematic body
+/// at the inflow velocity u(t) = Q(t)·L/(N·V_p) along `direction` (N lattice sites of spacing Δx_l in
+/// `region`, L the region's depth along `direction`, V_p = m/ρ₀ the volume of a particle), so the
+/// buffer carries exactly the volume flow Q(t) into the domain; new particles are placed on its free
+/// lattice sites ("slots") as the volume account reaches V_p. A slot with a liquid particle closer than
+/// 0.5Δx_l (SPEC §4.4) is skipped, so particles are never placed on each other (volume that finds no free slot is
+/// kept as a backlog and placed as slots free up). Close the region's back with a wall, as a real
+/// pipe is closed upstream.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Emitter {
+    pub name: String,
+    pub region: Region,
+    /// Direction of the inflow (normalised; need not be unit length, must not be zero).
+    pub direction: V3,
+    /// Volume flow of liquid [m³/s] (each particle carries the volume m/ρ₀; in 2-D m²/s per unit depth).
+    pub flow: Flow,
+    /// Rest volume fraction n₀ of the new particles (their mass is n₀ρ₀/S_W, as generated liquid):
+    /// default the liquid fraction of the scenario's liquid generators, 1 when there are none.
+    #[serde(default)]
+    pub fraction: Option<f64>,
+}
+
+/// Volume flow of an emitter.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub enum Flow {
+    /// Constant flow [m³/s].
+    Constant(f64),
+    /// Piecewise-linear in time: `rates[k]` [m³/s] at `times[k]` [s] (increasing; held constant
+    /// outside), repeating with `period` [s] when given (e.g. one cardiac cycle).
+    Table {
+        times: Vec<f64>,
+        rates: Vec<f64>,
+        #[serde(default)]
+        period: Option<f64>,
+    },
+    /// The patient's hepatic arterial flow (`physiology`), divided by its `volume_scale`.
+    Hepatic,
+}
+
+/// A sink: liquid particles inside `region` are removed at the end of each step.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Sink {
+    pub name: String,
+    pub region: Region,
+}
+
+/// Most entries of a flow table (GPU table size, `sim::cpu::emit::FLOW_MAX`).
+pub const FLOW_TABLE_MAX: usize = 1024;
 
 /// The cardiovascular model coupled to the organ (issue 7, `sim::physiology`): liquid that leaves the
 /// solid body is removed from the circulating volume, multiplied by `volume_scale` (simulated m³ →

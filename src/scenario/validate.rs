@@ -2,7 +2,7 @@
 //! with each other, and the time-step bounds reachable. Each problem names the field and the fix.
 
 use super::generate::lattice_count;
-use super::{Generator, InitialVelocity, Motion, Phase, PressureMode, Problem, Region, Scenario};
+use super::{Flow, Generator, InitialVelocity, Motion, Phase, PressureMode, Problem, Region, Scenario};
 
 /// Most particles a scenario may generate (all sets together): beyond this a desktop run is absurd.
 pub const MAX_PARTICLES: usize = 20_000_000;
@@ -143,11 +143,11 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             }
         }
     }
-    if s.particles.is_empty() {
+    if s.particles.is_empty() && s.emitters.is_empty() {
         return Err(Check::fail(
             "particles",
-            "no particle generator",
-            "add at least one generator, e.g. Box(phase: Liquid, ...)",
+            "no particle generator (and no emitter)",
+            "add at least one generator, e.g. Box(phase: Liquid, ...), or an emitter",
         ));
     }
     if has_liquid && s.liquid.is_none() {
@@ -453,6 +453,7 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             return Err(Check::fail("physiology.cardio", e.to_string(), "give a value in the stated range"));
         }
     }
+    check_emitters(s, d)?;
     for (i, r) in s.fixed_regions.iter().enumerate() {
         check_region(&format!("fixed_regions[{i}]"), r)?;
         if s.solid.is_none() {
@@ -593,4 +594,127 @@ fn check_velocity(f: &str, v: &Option<InitialVelocity>) -> Result<(), Problem> {
             Check::vec(&format!("{f}.velocity.direction"), *direction)
         }
     }
+}
+
+/// Most emitters and sinks of a scenario (GPU table sizes, `sim::cpu::emit`).
+pub const MAX_EMITTERS: usize = 8;
+pub const MAX_SINKS: usize = 8;
+/// Most emitter slots (lattice sites of all inlet regions together).
+pub const MAX_EMITTER_SLOTS: usize = 4096;
+
+/// Emitters, sinks and the liquid capacity (issue 7): inlet regions that hold at least one lattice
+/// site, finite non-negative flows, well-formed tables, a patient behind a hepatic inflow.
+fn check_emitters(s: &Scenario, d: usize) -> Result<(), Problem> {
+    if s.emitters.len() > MAX_EMITTERS {
+        return Err(Check::fail(
+            "emitters",
+            format!("{} emitters, at most {MAX_EMITTERS} are supported", s.emitters.len()),
+            "merge inlets into fewer regions",
+        ));
+    }
+    if s.sinks.len() > MAX_SINKS {
+        return Err(Check::fail(
+            "sinks",
+            format!("{} sinks, at most {MAX_SINKS} are supported", s.sinks.len()),
+            "merge outlets into fewer regions",
+        ));
+    }
+    if (!s.emitters.is_empty() || !s.sinks.is_empty()) && (s.liquid.is_none() || s.numerics.dx_liquid.is_none()) {
+        let f = if s.emitters.is_empty() { "sinks" } else { "emitters" };
+        return Err(Check::fail(
+            f,
+            "emitters and sinks move liquid particles, but there is no `liquid` material or `numerics.dx_liquid`",
+            "add a liquid material and numerics.dx_liquid",
+        ));
+    }
+    let dx_l = s.numerics.dx_liquid.unwrap_or(1.0);
+    let mut slots = 0usize;
+    for (i, e) in s.emitters.iter().enumerate() {
+        let f = format!("emitters[{i}]");
+        check_region(&format!("{f}.region"), &e.region)?;
+        let n = super::generate::lattice_points(&e.region, dx_l, d).len();
+        if n == 0 {
+            return Err(Check::fail(
+                format!("{f}.region"),
+                format!("holds no lattice site of spacing Δx_l = {dx_l} m, so no particle can be placed"),
+                "make the inlet at least Δx_l across on every axis",
+            ));
+        }
+        slots += n;
+        Check::vec(&format!("{f}.direction"), e.direction)?;
+        let len2: f64 = e.direction.iter().take(d).map(|x| x * x).sum();
+        if len2 <= 0.0 || !len2.is_finite() {
+            return Err(Check::fail(
+                format!("{f}.direction"),
+                "is zero (in the simulated plane)",
+                "give the direction the blood enters along, e.g. (1, 0, 0)",
+            ));
+        }
+        if let Some(fr) = e.fraction {
+            Check::range(&format!("{f}.fraction"), fr, 1e-3, 1.0, "a volume fraction n₀, e.g. 1 for free blood")?;
+        }
+        match &e.flow {
+            Flow::Constant(q) => Check::range(&format!("{f}.flow"), *q, 0.0, 1.0, "m³/s, e.g. 1e-6 (1 mL/s)")?,
+            Flow::Table { times, rates, period } => {
+                let ft = format!("{f}.flow.times");
+                if times.is_empty() || times.len() != rates.len() {
+                    return Err(Check::fail(
+                        ft,
+                        format!("{} times for {} rates", times.len(), rates.len()),
+                        "give one rate per time, at least one pair",
+                    ));
+                }
+                if times.len() > super::FLOW_TABLE_MAX {
+                    return Err(Check::fail(
+                        ft,
+                        format!("{} entries, at most {} are supported", times.len(), super::FLOW_TABLE_MAX),
+                        "resample the table more coarsely",
+                    ));
+                }
+                for (k, (t, q)) in times.iter().zip(rates).enumerate() {
+                    Check::finite(&format!("{ft}[{k}]"), *t)?;
+                    Check::range(&format!("{f}.flow.rates[{k}]"), *q, 0.0, 1.0, "m³/s, ≥ 0")?;
+                    if k > 0 && *t <= times[k - 1] {
+                        return Err(Check::fail(
+                            format!("{ft}[{k}]"),
+                            format!("{t} s does not follow {} s", times[k - 1]),
+                            "list the times in increasing order",
+                        ));
+                    }
+                }
+                if let Some(p) = period {
+                    Check::positive(&format!("{f}.flow.period"), *p, "seconds, e.g. one cardiac cycle 0.8")?;
+                }
+            }
+            Flow::Hepatic => {
+                if s.physiology.is_none() {
+                    return Err(Check::fail(
+                        format!("{f}.flow"),
+                        "Hepatic flow comes from the patient model, but the scenario has no `physiology`",
+                        "add physiology: Some(Physiology()) or give a Constant/Table flow",
+                    ));
+                }
+            }
+        }
+    }
+    if slots > MAX_EMITTER_SLOTS {
+        return Err(Check::fail(
+            "emitters",
+            format!("the inlet regions hold {slots} lattice sites, at most {MAX_EMITTER_SLOTS} are supported"),
+            "make the inlets smaller (a pipe cross-section one Δx_l thick)",
+        ));
+    }
+    for (i, k) in s.sinks.iter().enumerate() {
+        check_region(&format!("sinks[{i}].region"), &k.region)?;
+    }
+    if let Some(c) = s.liquid_capacity
+        && (c == 0 || c as usize > MAX_PARTICLES)
+    {
+        return Err(Check::fail(
+            "liquid_capacity",
+            format!("{c} particles is out of range"),
+            format!("give 1 … {MAX_PARTICLES}, at least the initial liquid"),
+        ));
+    }
+    Ok(())
 }

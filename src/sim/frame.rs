@@ -17,7 +17,7 @@ pub const SOLID_DENS_BYTES: u64 = 16;
 pub const SOLID_STRESS_BYTES: u64 = 2 * std::mem::size_of::<Mat3Gpu>() as u64;
 pub const U32_BYTES: u64 = 4;
 
-/// One set of render buffers (sized for a scenario's particle counts).
+/// One set of render buffers (sized for a scenario's liquid capacity and solid count).
 pub struct FrameBuffers {
     pub n_liquid: u32,
     pub n_solid: u32,
@@ -70,6 +70,8 @@ impl FrameBuffers {
 /// What goes with a published set: the time and the object poses at that time.
 #[derive(Clone, Debug, Default)]
 pub struct FrameInfo {
+    /// Live liquid particles in the set (the buffers hold the capacity).
+    pub n_liquid: u32,
     pub t: f64,
     pub steps: u64,
     pub objects: Vec<super::ObjectPose>,

@@ -88,6 +88,37 @@ pub enum Command {
     /// at `speed` [m/s], stopping there: a `Translate` motion from the current pose, so a tool driven
     /// by the mouse is a kinematic body with a bounded, known velocity (SPEC §4.1).
     MoveObject { object: usize, target: V3, speed: f64 },
+    /// Replace the flow of emitter `emitter` by the piecewise-linear table `rates` [m³/s] at `times`
+    /// [s] (increasing, held outside): how the patient model drives the hepatic inlet. Recorded like
+    /// every command, so a replay needs no cardiovascular model.
+    SetInflow { emitter: usize, times: Vec<f64>, rates: Vec<f64> },
+}
+
+/// Checks an inflow table (finite increasing times, finite rates ≥ 0, 1 … FLOW_MAX entries) and
+/// converts it to the f32 table both back-ends use.
+pub fn inflow_table(times: &[f64], rates: &[f64]) -> Result<cpu::emit::FlowTable, SimError> {
+    let bad = |m: String| Err(SimError::BadCommand(format!("SetInflow: {m}")));
+    if times.is_empty() || times.len() != rates.len() || times.len() > cpu::emit::FLOW_MAX {
+        return bad(format!(
+            "{} times for {} rates (give 1 … {} pairs)",
+            times.len(),
+            rates.len(),
+            cpu::emit::FLOW_MAX
+        ));
+    }
+    for k in 0..times.len() {
+        if !times[k].is_finite() || (k > 0 && times[k] as f32 <= times[k - 1] as f32) {
+            return bad(format!("times[{k}] = {} is not finite and increasing", times[k]));
+        }
+        if !(rates[k].is_finite() && rates[k] >= 0.0) {
+            return bad(format!("rates[{k}] = {} must be finite and ≥ 0", rates[k]));
+        }
+    }
+    Ok(cpu::emit::FlowTable {
+        times: times.iter().map(|&t| t as f32).collect(),
+        rates: rates.iter().map(|&q| q as f32).collect(),
+        period: 0.0,
+    })
 }
 
 /// Where a boundary object is now (scenario coordinates), for drawing and for tool input.
@@ -177,6 +208,25 @@ pub struct RunStats {
     pub broken_bonds: u64,
 }
 
+/// What the emitters and sinks have done (issue 7): `summary.json`'s `emitted_volume_m3` and the
+/// volume balance initial + emitted − sunk = live, to the particle.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct EmitTotals {
+    /// Particles added / removed since t = 0.
+    pub emitted: u64,
+    pub sunk: u64,
+    /// Particles added by each emitter.
+    pub per_emitter: Vec<u64>,
+    /// Σ m/ρ₀ of the particles added [m³].
+    pub emitted_volume_m3: f64,
+    /// Volume owed by the flows and not yet placed (no free slot) [m³].
+    pub backlog_m3: f64,
+    pub live_liquid: u64,
+    pub capacity: u64,
+    /// An emitter had volume to place but the liquid capacity was full.
+    pub capacity_reached: bool,
+}
+
 /// Steps per [`Simulation::advance`] call of the chunked loops (one GPU batch).
 pub const ADVANCE_CHUNK: u32 = 64;
 
@@ -211,6 +261,18 @@ impl Simulation {
     fn build(scenario: &Scenario, backend: BackendKind, ctx: Option<gpu::GpuContext>) -> Result<Simulation, SimError> {
         scenario.validate("(scenario)")?;
         let generated = crate::scenario::generate(scenario);
+        if generated.liquid_capacity < generated.liquid.pos.len() {
+            return Err(SimError::Scenario(ScenarioError::Invalid {
+                path: "(scenario)".into(),
+                field: "liquid_capacity".into(),
+                problem: format!(
+                    "{} is below the {} liquid particles generated",
+                    generated.liquid_capacity,
+                    generated.liquid.pos.len()
+                ),
+                fix: "raise it or leave it out (default: the initial liquid + 20 000 with emitters)".into(),
+            }));
+        }
         let params = Params::new(scenario, &generated);
         let engine = match (backend, ctx) {
             (BackendKind::Cpu, _) => Engine::Cpu(Box::new(cpu::CpuSolver::new(params, &generated)?)),
@@ -400,12 +462,35 @@ impl Simulation {
         })
     }
 
-    /// Particle counts (liquid, solid) a render buffer set must hold.
+    /// Particle counts (liquid, solid) a render buffer set must hold: the liquid capacity (emitters
+    /// add particles), the solid count.
     pub fn frame_counts(&self) -> (u32, u32) {
+        match &self.engine {
+            Engine::Cpu(c) => (c.st.emit.capacity.max(c.st.liquid.x.len()) as u32, c.st.solid.x.len() as u32),
+            Engine::Gpu(g) => g.frame_capacity(),
+        }
+    }
+
+    /// Live (liquid, solid) particle counts.
+    pub fn particle_counts(&self) -> (u32, u32) {
         match &self.engine {
             Engine::Cpu(c) => (c.st.liquid.x.len() as u32, c.st.solid.x.len() as u32),
             Engine::Gpu(g) => g.particle_counts(),
         }
+    }
+
+    /// Emitter and sink totals (on the GPU back-end one small readback when there are emitters).
+    pub fn emit_totals(&self) -> Result<EmitTotals, SimError> {
+        match &self.engine {
+            Engine::Cpu(c) => Ok(c.emit_totals()),
+            Engine::Gpu(g) => g.emit_totals(),
+        }
+    }
+
+    /// Indices of the scenario's emitters whose flow is the patient's hepatic flow.
+    pub fn hepatic_emitters(&self) -> Vec<usize> {
+        let hepatic = |e: &crate::scenario::Emitter| matches!(e.flow, crate::scenario::Flow::Hepatic);
+        self.scenario.emitters.iter().enumerate().filter(|(_, e)| hepatic(e)).map(|(k, _)| k).collect()
     }
 
     /// Fills render buffer set `frame` with the current state and returns what goes with it. On the
@@ -417,6 +502,7 @@ impl Simulation {
             Engine::Gpu(g) => g.publish(frame).map_err(|e| SimError::Gpu(e.to_string()))?,
         }
         Ok(frame::FrameInfo {
+            n_liquid: self.particle_counts().0,
             t: self.time(),
             steps: self.stats.steps,
             objects: self.object_poses(),

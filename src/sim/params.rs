@@ -17,6 +17,8 @@ pub struct Params {
     /// Cross-phase kernel, R_× = max(R_s, R_l) (SPEC §2.1, D-3).
     pub k_cross: Kernel,
     pub dx_solid: f32,
+    /// Liquid lattice spacing Δx_l [m] (emitter slots, 0 without liquid).
+    pub dx_liquid: f32,
     /// W_C(Δx_s; h_s), denominator of f_ij (2.60).
     pub wc_dx: f32,
     pub rho0_l: f32,
@@ -94,7 +96,7 @@ impl Params {
     pub fn new(s: &Scenario, g: &GeneratedParticles) -> Params {
         let dim = s.dim();
         let n = &s.numerics;
-        let has_liquid = !g.liquid.pos.is_empty();
+        let has_liquid = !g.liquid.pos.is_empty() || !g.emitters.is_empty();
         let has_solid = !g.solid.pos.is_empty();
         // A skeleton held entirely still (Brinkman) moves nothing: its wave speed sets no time step.
         let solid_dynamic = g.solid_flags.iter().any(|f| f & crate::scenario::SolidFlags::KINEMATIC == 0);
@@ -171,6 +173,7 @@ impl Params {
             k_solid,
             k_cross: Kernel::new(h_x as f32, dim),
             dx_solid: g.dx_solid as f32,
+            dx_liquid: g.dx_liquid as f32,
             wc_dx: if g.dx_solid > 0.0 { k_solid.w_cubic(g.dx_solid as f32) } else { 1.0 },
             rho0_l: rho0_l as f32,
             rho0_s: rho0_s as f32,

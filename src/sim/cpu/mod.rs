@@ -8,6 +8,7 @@
 
 pub mod density;
 pub mod dt;
+pub mod emit;
 pub mod forces;
 pub mod fracture;
 pub mod grid;
@@ -138,6 +139,8 @@ pub struct CpuState {
     pub gravity: Vec3,
     pub damping: f32,
     pub damping_solid_gravity_only: bool,
+    /// Emitters and sinks with their volume accounts (`emit`).
+    pub emit: emit::EmitState,
 }
 
 pub struct CpuSolver {
@@ -238,6 +241,7 @@ impl CpuSolver {
             })
             .collect();
         let gravity = params.gravity;
+        let emit = emit::EmitState::new(&params, g);
         let pool = std::sync::Arc::new(
             rayon::ThreadPoolBuilder::new()
                 .build()
@@ -249,7 +253,7 @@ impl CpuSolver {
             geoms: shapes.clone(),
             shapes,
             params,
-            st: CpuState { liquid, solid, boundary, objects: g.objects.clone(), gravity, ..Default::default() },
+            st: CpuState { liquid, solid, boundary, objects: g.objects.clone(), gravity, emit, ..Default::default() },
             grids: Grids::default(),
             pressure_modes,
             last_good: CpuState::default(),
@@ -408,8 +412,9 @@ impl CpuSolver {
                 reason: format!("time step collapsed to {dt:.3e} s (limited by {limit:?}), below dt_min"),
             });
         }
-        // 5: predictor and F update (∇W at xⁿ), then move.
+        // 5: predictor and F update (∇W at xⁿ), then move (inlet buffers at u(tⁿ⁺¹)).
         let t_next = self.st.t + dt as f64;
+        emit::emit_velocities(&mut self.st, t_next);
         integrate::integrate_predict(&self.params, &mut self.st, dt, t_next);
         let t0 = self.timers.lap("integrate", t0);
         if self.params.solid_dynamic {
@@ -418,6 +423,9 @@ impl CpuSolver {
         let t0 = self.timers.lap("solid", t0);
         integrate::integrate_advance(&self.params, &mut self.st, dt);
         let t0 = self.timers.lap("integrate", t0);
+        // 5½: sinks and emitters on xⁿ⁺¹ (issue 7).
+        emit::emit_step(&self.params, &mut self.st, dt, t_next);
+        let t0 = self.timers.lap("emit", t0);
         // 6: boundaries → tⁿ⁺¹, grid on xⁿ⁺¹.
         self.move_boundaries(t_next);
         self.build_grids();
@@ -511,7 +519,7 @@ impl CpuSolver {
         use crate::sim::gpu::gpu_types::{Mat3Gpu, StressGpu};
         let l = &self.st.liquid;
         let s = &self.st.solid;
-        if frame.n_liquid as usize != l.x.len() || frame.n_solid as usize != s.x.len() {
+        if (frame.n_liquid as usize) < l.x.len() || frame.n_solid as usize != s.x.len() {
             log::error!("publish: render buffers do not match the particle counts; frame skipped");
             return;
         }
@@ -573,8 +581,33 @@ impl CpuSolver {
                 self.move_boundaries(*t);
                 self.build_grids();
             }
+            Command::SetInflow { emitter, times, rates } => {
+                let table = crate::sim::inflow_table(times, rates)?;
+                let em = self
+                    .st
+                    .emit
+                    .emitters
+                    .get_mut(*emitter)
+                    .ok_or_else(|| SimError::BadCommand(format!("no emitter #{emitter}")))?;
+                em.flow = table;
+            }
         }
         Ok(())
+    }
+
+    /// Emitter and sink totals.
+    pub fn emit_totals(&self) -> crate::sim::EmitTotals {
+        let e = &self.st.emit;
+        crate::sim::EmitTotals {
+            emitted: e.emitted,
+            sunk: e.sunk,
+            per_emitter: e.emitters.iter().map(|m| m.count).collect(),
+            emitted_volume_m3: e.emitters.iter().map(|m| m.count as f64 * f64::from(m.volume)).sum(),
+            backlog_m3: e.emitters.iter().map(|m| f64::from(m.acc.max(0.0))).sum(),
+            live_liquid: self.st.liquid.x.len() as u64,
+            capacity: e.capacity.max(self.st.liquid.x.len()) as u64,
+            capacity_reached: e.capacity_reached,
+        }
     }
 
     /// Bytes of particle storage (all per-particle arrays, bonds and the divergence snapshot).

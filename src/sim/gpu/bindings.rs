@@ -51,11 +51,18 @@ pub enum Slot {
     IndirectArgs,
     /// Squared breaking length of each bond slot (same layout as `BondTable`), compacted with it.
     BondLimit,
+    /// Emitters and sinks (emit.wgsl): state, slot positions, slot blocked flags, flow tables.
+    EmitState,
+    EmitSlots,
+    EmitBlocked,
+    EmitFlow,
+    /// Liquid particle ids (emitters add, sinks compact).
+    LiquidId,
 }
 
 impl Slot {
     /// The slot with the highest binding number (sizes the slot table).
-    pub const LAST: Slot = Slot::BondLimit;
+    pub const LAST: Slot = Slot::LiquidId;
 
     /// Binding number in group 0 (common.wgsl).
     pub const fn binding(self) -> u32 {
@@ -106,6 +113,11 @@ impl Slot {
             Slot::Motions => "motions",
             Slot::IndirectArgs => "indirect_args",
             Slot::BondLimit => "bond_limit",
+            Slot::EmitState => "emit_state",
+            Slot::EmitSlots => "emit_slots",
+            Slot::EmitBlocked => "emit_blocked",
+            Slot::EmitFlow => "emit_flow",
+            Slot::LiquidId => "liquid_id",
         }
     }
 
@@ -149,5 +161,6 @@ mod tests {
         assert_eq!(Slot::GridCursor.binding(), 36);
         assert_eq!(Slot::IndirectArgs.binding(), 39);
         assert_eq!(Slot::BondLimit.binding(), 40);
+        assert_eq!(Slot::LiquidId.binding(), 45);
     }
 }

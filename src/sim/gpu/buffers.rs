@@ -40,6 +40,9 @@ pub const STATE_SLOTS: &[Slot] = &[
     Slot::BondTable,
     Slot::BondCount,
     Slot::BondLimit,
+    Slot::LiquidId,
+    // emitter volume accounts, cursors and counts
+    Slot::EmitState,
     // the object poses at tⁿ (written on the GPU by `batch_motion`): restored with the state so a
     // re-run of a diverged batch step by step sees the same boundaries
     Slot::Objects,

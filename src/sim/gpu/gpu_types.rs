@@ -248,6 +248,12 @@ pub struct BatchState {
     pub bad_solid: u32,
     pub broken_ends: u32,
     pub fail_dt: f32,
+    /// Live liquid particles; particles emitted and sunk since t = 0 (emit.wgsl).
+    pub n_liquid: u32,
+    pub emitted: u32,
+    pub sunk: u32,
+    /// An emitter found the liquid capacity full during the batch.
+    pub capacity_hit: u32,
     pub _pad0: u32,
     pub _pad1: u32,
     pub _pad2: u32,
@@ -259,6 +265,59 @@ pub struct BatchState {
 /// Byte offset of `BatchState::end_hi`: the host rewrites the block from here per batch, leaving the
 /// GPU clock (t_hi, t_lo) untouched.
 pub const BATCH_HEADER_OFFSET: u64 = offset_of!(BatchState, end_hi) as u64;
+
+/// `EmitterGpu` (common.wgsl): one inlet (twin `sim::cpu::emit::Emitter`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct EmitterGpu {
+    /// xyz: unit direction, w: buffer speed per unit flow.
+    pub dir: [f32; 4],
+    pub velocity: [f32; 4],
+    pub region_a: [f32; 4],
+    pub region_b: [f32; 4],
+    pub slot_start: u32,
+    pub slot_count: u32,
+    pub cursor: u32,
+    pub count: u32,
+    pub mass: f32,
+    pub volume: f32,
+    pub acc: f32,
+    pub region_kind: u32,
+}
+
+/// `SinkGpu` (common.wgsl): a sink region (box [a, b] or sphere centre a, radius b.x).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct SinkGpu {
+    pub a: [f32; 4],
+    pub b: [f32; 4],
+    pub kind: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+}
+
+/// Emitters and sinks per scenario (`EmitState`'s fixed arrays; `scenario` validation limits).
+pub const MAX_EMITTERS: usize = 8;
+pub const MAX_SINKS: usize = 8;
+/// Floats per emitter in the flow-table buffer: [entries (bits), period, 0, 0, times, rates].
+pub const FLOW_STRIDE: usize = 4 + 2 * crate::sim::cpu::emit::FLOW_MAX;
+
+/// `EmitState` (common.wgsl): emitters, sinks and the liquid capacity.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct EmitStateGpu {
+    pub n_emitters: u32,
+    pub n_sinks: u32,
+    pub n_slots: u32,
+    pub capacity: u32,
+    pub id_base: u32,
+    pub sink_hits: u32,
+    pub block_r2: f32,
+    pub _pad0: u32,
+    pub emitters: [EmitterGpu; MAX_EMITTERS],
+    pub sinks: [SinkGpu; MAX_SINKS],
+}
 
 /// `Mat3Gpu` (common.wgsl): glam's column-major `Mat3`, one `vec4` per column.
 #[repr(C)]
@@ -309,7 +368,10 @@ const _: () = assert!(size_of::<Mat3Gpu>() == 48);
 const _: () = assert!(size_of::<StressGpu>() == 96);
 const _: () = assert!(size_of::<GridSet>() == 16);
 const _: () = assert!(size_of::<MotionGpu>() == 80);
-const _: () = assert!(size_of::<BatchState>() == 96 + 8 * MAX_BATCH);
+const _: () = assert!(size_of::<BatchState>() == 112 + 8 * MAX_BATCH);
+const _: () = assert!(size_of::<EmitterGpu>() == 96);
+const _: () = assert!(size_of::<SinkGpu>() == 48);
+const _: () = assert!(size_of::<EmitStateGpu>() == 32 + (96 + 48) * 8);
 
 /// One struct's layout: (WGSL struct name, Rust size, [(member, Rust offset)]).
 pub type StructLayout = (&'static str, usize, &'static [(&'static str, usize)]);
@@ -367,9 +429,32 @@ pub const LAYOUTS: &[StructLayout] = &[
         &[
             ("end_hi", offset_of!(BatchState, end_hi)),
             ("fail_dt", offset_of!(BatchState, fail_dt)),
+            ("n_liquid", offset_of!(BatchState, n_liquid)),
+            ("capacity_hit", offset_of!(BatchState, capacity_hit)),
             ("wg", offset_of!(BatchState, wg)),
             ("dt", offset_of!(BatchState, dt)),
             ("limit", offset_of!(BatchState, limit)),
+        ],
+    ),
+    (
+        "EmitterGpu",
+        size_of::<EmitterGpu>(),
+        &[
+            ("velocity", offset_of!(EmitterGpu, velocity)),
+            ("slot_start", offset_of!(EmitterGpu, slot_start)),
+            ("acc", offset_of!(EmitterGpu, acc)),
+            ("region_kind", offset_of!(EmitterGpu, region_kind)),
+        ],
+    ),
+    ("SinkGpu", size_of::<SinkGpu>(), &[("b", offset_of!(SinkGpu, b)), ("kind", offset_of!(SinkGpu, kind))]),
+    (
+        "EmitState",
+        size_of::<EmitStateGpu>(),
+        &[
+            ("sink_hits", offset_of!(EmitStateGpu, sink_hits)),
+            ("block_r2", offset_of!(EmitStateGpu, block_r2)),
+            ("emitters", offset_of!(EmitStateGpu, emitters)),
+            ("sinks", offset_of!(EmitStateGpu, sinks)),
         ],
     ),
 ];

@@ -90,6 +90,25 @@ pub struct GpuSolver {
     damping_solid_gravity_only: bool,
     solid_flags: Vec<u32>,
     bond_count0: Vec<u32>,
+    /// The scenario has emitters or sinks: the liquid count changes on the GPU (emit.wgsl).
+    emit_active: bool,
+    /// Liquid particles the buffers hold room for (= the initial count without emitters).
+    capacity: u32,
+    /// Particles emitted and sunk since t = 0, as of the last batch.
+    emitted: u64,
+    sunk: u64,
+    /// An emitter found the capacity full.
+    capacity_hit: bool,
+    /// Number of emitters (flow-table regions).
+    emit_count: usize,
+}
+
+/// One element of a batched step.
+#[derive(Clone, Copy)]
+enum Item {
+    Dispatch(PassSpec, Option<GridOf>, Mode),
+    /// Copy the live liquid count into the uniforms (after the emitters).
+    SyncCounts,
 }
 
 fn v4(v: Vec3, w: f32) -> [f32; 4] {
@@ -193,8 +212,25 @@ impl GpuSolver {
         };
         let cells = params.grid.cell_count() as u32;
         let shapes = object_shapes(&params, &st.objects);
+        let emit_active = st.emit.is_active();
+        let capacity = if emit_active { st.emit.capacity.max(st.liquid.x.len()) as u32 } else { counts.liquid };
         let mut solver_init = Vec::new();
         Self::state_contents(cpu, &mut solver_init);
+        Self::emit_contents(cpu, &mut solver_init);
+        // Liquid buffers hold `capacity` particles (emitters append behind the live ones).
+        for (slot, data) in solver_init.iter_mut() {
+            let elem = match slot {
+                Slot::LiquidPos
+                | Slot::LiquidVel
+                | Slot::LiquidVelAdv
+                | Slot::LiquidAcc
+                | Slot::LiquidAcc0
+                | Slot::LiquidDens => 16,
+                Slot::LiquidId => 4,
+                _ => continue,
+            };
+            data.resize(elem * capacity as usize, 0);
+        }
         let gravity_liquid = !(st.damping > 0.0 && st.damping_solid_gravity_only);
         let sp = SimParams::new(&params, counts, st.gravity, st.damping, gravity_liquid);
         solver_init.push((Slot::Params, bytes(&[sp])));
@@ -202,7 +238,7 @@ impl GpuSolver {
         let objects = objects_at(&params, &st.objects, &shapes, &cpu.pressure_modes, st.t);
         solver_init.push((Slot::Objects, bytes(&objects)));
         let wg_template = [
-            counts.liquid.div_ceil(passes::WORKGROUP),
+            capacity.div_ceil(passes::WORKGROUP),
             counts.solid.div_ceil(passes::WORKGROUP),
             counts.boundary.div_ceil(passes::WORKGROUP),
             cells.div_ceil(passes::WORKGROUP),
@@ -214,11 +250,12 @@ impl GpuSolver {
         let clock = split_pair(st.t);
         let mut batch0: BatchState = bytemuck::Zeroable::zeroed();
         (batch0.t_hi, batch0.t_lo, batch0.wg) = (clock[0], clock[1], wg_template);
+        (batch0.n_liquid, batch0.emitted, batch0.sunk) = (counts.liquid, st.emit.emitted as u32, st.emit.sunk as u32);
         solver_init.push((Slot::Batch, bytes(&[batch0])));
         solver_init.push((Slot::Motions, bytes(&motion_table(&params, &st.objects, &shapes, &cpu.pressure_modes))));
         solver_init.push((Slot::IndirectArgs, vec![0u8; 4 * 18]));
         for (slot, n) in [
-            (Slot::LiquidOrder, counts.liquid as usize),
+            (Slot::LiquidOrder, capacity as usize),
             (Slot::SolidOrder, counts.solid as usize),
             (Slot::BoundaryOrder, counts.boundary as usize),
         ] {
@@ -229,7 +266,7 @@ impl GpuSolver {
         }
         let gs = |n: u32| GridSet { n, cells, _pad0: 0, _pad1: 0 };
         let (g0, g1, g2) = (bytes(&[gs(counts.liquid)]), bytes(&[gs(counts.solid)]), bytes(&[gs(counts.boundary)]));
-        let max_set = counts.liquid.max(counts.solid).max(counts.boundary) as usize;
+        let max_set = capacity.max(counts.solid).max(counts.boundary) as usize;
         let buffers = SimBuffers::new(&ctx.device, solver_init, [&g0, &g1, &g2], max_set, cells as usize);
         let pipelines = create_pipelines(&ctx.device, &buffers)?;
         let batch_staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -264,6 +301,12 @@ impl GpuSolver {
             damping_solid_gravity_only: st.damping_solid_gravity_only,
             solid_flags: st.solid.flags.clone(),
             bond_count0: st.solid.bond_count0.clone(),
+            emit_active,
+            capacity,
+            emitted: st.emit.emitted,
+            sunk: st.emit.sunk,
+            capacity_hit: st.emit.capacity_reached,
+            emit_count: st.emit.emitters.len(),
         };
         solver.run_stages(passes::PLACE_AND_BIN)?;
         solver.errors.take("solver creation")?;
@@ -309,6 +352,48 @@ impl GpuSolver {
         out.push((Slot::BoundaryPos0, bytes(&p0)));
     }
 
+    /// Emitter tables from the CPU solver's `EmitState` (same slots, flows, accounts) and the ids.
+    fn emit_contents(cpu: &CpuSolver, out: &mut Vec<(Slot, Vec<u8>)>) {
+        let e = &cpu.st.emit;
+        let mut state: gpu_types::EmitStateGpu = bytemuck::Zeroable::zeroed();
+        let mut slots: Vec<[f32; 4]> = Vec::new();
+        let mut flow = vec![0f32; gpu_types::FLOW_STRIDE * e.emitters.len().max(1)];
+        for (k, em) in e.emitters.iter().take(gpu_types::MAX_EMITTERS).enumerate() {
+            state.emitters[k] = gpu_types::EmitterGpu {
+                dir: v4(em.dir, em.speed_per_flow),
+                velocity: v4(em.velocity, 0.0),
+                region_a: v4(em.region.a, 0.0),
+                region_b: v4(em.region.b, 0.0),
+                slot_start: slots.len() as u32,
+                slot_count: em.slots.len() as u32,
+                cursor: em.cursor,
+                count: em.count as u32,
+                mass: em.mass,
+                volume: em.volume,
+                acc: em.acc,
+                region_kind: em.region.kind,
+            };
+            slots.extend(em.slots.iter().map(|x| v4(*x, 0.0)));
+            flow_region(&em.flow, &mut flow[k * gpu_types::FLOW_STRIDE..(k + 1) * gpu_types::FLOW_STRIDE]);
+        }
+        for (k, g) in e.sinks.iter().take(gpu_types::MAX_SINKS).enumerate() {
+            state.sinks[k] =
+                gpu_types::SinkGpu { a: v4(g.a, 0.0), b: v4(g.b, 0.0), kind: g.kind, ..Default::default() };
+        }
+        state.n_emitters = e.emitters.len().min(gpu_types::MAX_EMITTERS) as u32;
+        state.n_sinks = e.sinks.len().min(gpu_types::MAX_SINKS) as u32;
+        state.n_slots = slots.len() as u32;
+        state.capacity = e.capacity.max(cpu.st.liquid.x.len()) as u32;
+        state.id_base = e.id_base;
+        let r = super::cpu::emit::BLOCK_FACTOR * cpu.params.dx_liquid;
+        state.block_r2 = r * r;
+        out.push((Slot::EmitState, bytes(&[state])));
+        out.push((Slot::EmitBlocked, vec![0u8; 4 * slots.len().max(1)]));
+        out.push((Slot::EmitSlots, bytes(&slots)));
+        out.push((Slot::EmitFlow, bytes(&flow)));
+        out.push((Slot::LiquidId, bytes(&cpu.st.liquid.id)));
+    }
+
     /// Simulation clock [s].
     pub fn time(&self) -> f64 {
         self.t
@@ -331,15 +416,36 @@ impl GpuSolver {
         })
     }
 
+    /// Liquid invocations a pass is encoded for: the capacity with emitters (the GPU's indirect
+    /// arguments and `params.counts.x` then hold the live count), else the count.
+    fn liquid_dispatch(&self) -> u32 {
+        if self.emit_active { self.capacity } else { self.counts.liquid }
+    }
+
+    /// Copies the live liquid count (`batch.n_liquid`) into the uniforms' `counts.x` and the liquid
+    /// grid set's `n` (between compute passes; emitters and sinks change it on the GPU).
+    fn encode_sync(&self, enc: &mut wgpu::CommandEncoder) {
+        let (Ok(batch), Ok(params), Some(gs)) = (
+            self.buffer(Slot::Batch),
+            self.buffer(Slot::Params),
+            self.buffers.get(Slot::GridSet, Some(GridOf::Liquid)),
+        ) else {
+            return;
+        };
+        let src = std::mem::offset_of!(BatchState, n_liquid) as u64;
+        enc.copy_buffer_to_buffer(batch, src, params, std::mem::offset_of!(SimParams, counts) as u64, 4);
+        enc.copy_buffer_to_buffer(batch, src, gs, 0, 4);
+    }
+
     fn workgroups(&self, spec: &PassSpec, grid: Option<GridOf>) -> u32 {
         let set_n = match grid {
-            Some(GridOf::Liquid) => self.counts.liquid,
+            Some(GridOf::Liquid) => self.liquid_dispatch(),
             Some(GridOf::Solid) => self.counts.solid,
             Some(GridOf::Boundary) => self.counts.boundary,
             None => 0,
         };
         let n = match spec.dispatch {
-            Dispatch::Liquid => self.counts.liquid,
+            Dispatch::Liquid => self.liquid_dispatch(),
             Dispatch::Solid => self.counts.solid,
             Dispatch::Boundary => self.counts.boundary,
             Dispatch::GridParticles => set_n,
@@ -350,32 +456,32 @@ impl GpuSolver {
         n.div_ceil(spec.workgroup_size)
     }
 
-    /// Encodes `stages` into one compute pass (wgpu orders the dispatches with barriers).
+    /// Encodes `stages` into compute passes (wgpu orders the dispatches with barriers), split where
+    /// the host copies the live liquid count ([`Stage::SyncCounts`]).
     fn encode(&self, enc: &mut wgpu::CommandEncoder, stages: &[Stage]) {
-        let mut pass = enc
-            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("perfuse.step"), timestamp_writes: None });
-        let mut dispatch = |spec: &PassSpec, grid: Option<GridOf>| {
-            let wg = self.workgroups(spec, grid);
-            if wg == 0 {
-                return;
-            }
-            if grid.is_some() && self.workgroups(&passes::GRID_COUNT, grid) == 0 {
-                return; // empty set: its cell list stays all-zero (empty)
-            }
-            let Some(p) = self.pipelines.get(spec.entry) else { return };
-            let Some((_, bg)) = p.groups.iter().find(|(g, _)| *g == grid) else { return };
-            pass.set_pipeline(&p.pipeline);
-            pass.set_bind_group(0, bg, &[]);
-            pass.dispatch_workgroups(wg, 1, 1);
-        };
-        for stage in stages {
-            match stage {
-                Stage::Pass(spec) => dispatch(spec, None),
-                Stage::Grid(set) => {
-                    for spec in passes::GRID_BUILD {
-                        dispatch(spec, Some(*set));
+        let mut i = 0;
+        while i < stages.len() {
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("perfuse.step"),
+                    timestamp_writes: None,
+                });
+                while i < stages.len() {
+                    match &stages[i] {
+                        Stage::Pass(spec) => self.dispatch_item(&mut pass, spec, None, Mode::Direct),
+                        Stage::Grid(set) => {
+                            for spec in passes::GRID_BUILD {
+                                self.dispatch_item(&mut pass, spec, Some(*set), Mode::Direct);
+                            }
+                        }
+                        Stage::SyncCounts => break,
                     }
+                    i += 1;
                 }
+            }
+            if i < stages.len() {
+                self.encode_sync(enc);
+                i += 1;
             }
         }
     }
@@ -421,23 +527,33 @@ impl GpuSolver {
     }
 
     /// The items of one batched step: `batch_begin`, the first half (indirect), `batch_motion`, the
-    /// second half (indirect), `batch_end`.
-    fn step_items() -> Vec<(PassSpec, Option<GridOf>, Mode)> {
-        let mut out = vec![(passes::BATCH_BEGIN, None, Mode::Direct)];
-        let push = |stages: &[Stage], out: &mut Vec<(PassSpec, Option<GridOf>, Mode)>| {
+    /// second half (indirect; the emitters and the count copy after the advance when there are any),
+    /// `batch_end`.
+    fn step_items(&self) -> Vec<Item> {
+        let mut out = vec![Item::Dispatch(passes::BATCH_BEGIN, None, Mode::Direct)];
+        let push = |stages: &[Stage], out: &mut Vec<Item>| {
             for stage in stages {
                 match stage {
-                    Stage::Pass(spec) => out.push((*spec, None, Mode::Indirect)),
-                    Stage::Grid(set) => {
-                        out.extend(passes::GRID_BUILD.iter().map(|spec| (*spec, Some(*set), Mode::Indirect)))
+                    // a pass that writes the indirect arguments cannot be dispatched from them
+                    Stage::Pass(spec) if spec.slots.contains(&Slot::IndirectArgs) => {
+                        out.push(Item::Dispatch(*spec, None, Mode::Direct))
                     }
+                    Stage::Pass(spec) => out.push(Item::Dispatch(*spec, None, Mode::Indirect)),
+                    Stage::Grid(set) => out.extend(
+                        passes::GRID_BUILD.iter().map(|spec| Item::Dispatch(*spec, Some(*set), Mode::Indirect)),
+                    ),
+                    Stage::SyncCounts => out.push(Item::SyncCounts),
                 }
             }
         };
         push(passes::STEP_FIRST, &mut out);
-        out.push((passes::BATCH_MOTION, None, Mode::Direct));
+        out.push(Item::Dispatch(passes::BATCH_MOTION, None, Mode::Direct));
+        push(passes::STEP_ADVANCE, &mut out);
+        if self.emit_active {
+            push(passes::STEP_EMIT, &mut out);
+        }
         push(passes::STEP_SECOND, &mut out);
-        out.push((passes::BATCH_END, None, Mode::Direct));
+        out.push(Item::Dispatch(passes::BATCH_END, None, Mode::Direct));
         out
     }
 
@@ -463,27 +579,45 @@ impl GpuSolver {
     /// Encodes `n` batched steps; with `timed`, one compute pass per family segment with timestamps,
     /// returning (step, family) of each segment in query order.
     fn encode_batch(&self, enc: &mut wgpu::CommandEncoder, n: usize, timed: bool) -> Vec<(usize, &'static str)> {
-        let items = Self::step_items();
+        let items = self.step_items();
         let mut segments = Vec::new();
         let timer = self.timer.as_ref().filter(|_| timed);
         let Some(timer) = timer else {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("perfuse.batch"),
-                timestamp_writes: None,
-            });
-            for _ in 0..n {
-                for (spec, grid, mode) in &items {
-                    self.dispatch_item(&mut pass, spec, *grid, *mode);
+            // As few compute passes as possible: one per run of dispatches between count copies.
+            let all: Vec<&Item> = (0..n).flat_map(|_| items.iter()).collect();
+            let mut i = 0;
+            while i < all.len() {
+                {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("perfuse.batch"),
+                        timestamp_writes: None,
+                    });
+                    while let Some(Item::Dispatch(spec, grid, mode)) = all.get(i) {
+                        self.dispatch_item(&mut pass, spec, *grid, *mode);
+                        i += 1;
+                    }
+                }
+                if i < all.len() {
+                    self.encode_sync(enc);
+                    i += 1;
                 }
             }
             return segments;
         };
+        let family = |it: &Item| match it {
+            Item::Dispatch(spec, _, _) => Some(spec.family),
+            Item::SyncCounts => None,
+        };
         for k in 0..n {
             let mut i = 0;
             while i < items.len() {
-                let family = items[i].0.family;
+                let Some(fam) = family(&items[i]) else {
+                    self.encode_sync(enc);
+                    i += 1;
+                    continue;
+                };
                 let mut j = i;
-                while j < items.len() && items[j].0.family == family {
+                while j < items.len() && family(&items[j]) == Some(fam) {
                     j += 1;
                 }
                 let q = 2 * segments.len() as u32;
@@ -493,14 +627,16 @@ impl GpuSolver {
                     end_of_pass_write_index: Some(q + 1),
                 });
                 if writes.is_some() {
-                    segments.push((k, family));
+                    segments.push((k, fam));
                 }
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("perfuse.batch_timed"),
                     timestamp_writes: writes,
                 });
-                for (spec, grid, mode) in &items[i..j] {
-                    self.dispatch_item(&mut pass, spec, *grid, *mode);
+                for item in &items[i..j] {
+                    if let Item::Dispatch(spec, grid, mode) = item {
+                        self.dispatch_item(&mut pass, spec, *grid, *mode);
+                    }
                 }
                 i = j;
             }
@@ -520,6 +656,8 @@ impl GpuSolver {
         let mut header: BatchState = bytemuck::Zeroable::zeroed();
         let end = split_pair(t_end.min(1e30));
         (header.end_hi, header.end_lo, header.wg) = (end[0], end[1], self.wg_template);
+        (header.n_liquid, header.emitted, header.sunk) = (self.counts.liquid, self.emitted as u32, self.sunk as u32);
+        header.wg[0] = self.counts.liquid.div_ceil(passes::WORKGROUP);
         let hb = bytemuck::bytes_of(&header);
         let off = BATCH_HEADER_OFFSET as usize;
         let hlen = std::mem::offset_of!(BatchState, dt);
@@ -571,6 +709,11 @@ impl GpuSolver {
         }
         acc.broken_bonds += u64::from(b.broken_ends) / 2;
         self.clock = [b.t_hi, b.t_lo];
+        if self.emit_active {
+            self.counts.liquid = b.n_liquid;
+            (self.emitted, self.sunk) = (u64::from(b.emitted), u64::from(b.sunk));
+            self.capacity_hit |= b.capacity_hit != 0;
+        }
     }
 
     /// Takes up to `max_steps` steps, stopping after the first whose end time reaches `t_end` (none if
@@ -668,6 +811,14 @@ impl GpuSolver {
         self.buffers.encode_backup(&mut enc, true);
         self.ctx.queue.submit([enc.finish()]);
         self.upload_clock(self.clock)?;
+        if self.emit_active {
+            // the live count of the restored state (the host's, as of the batch start)
+            self.upload_params()?;
+            let gs = GridSet { n: self.counts.liquid, cells: self.cells, _pad0: 0, _pad1: 0 };
+            if let Some(b) = self.buffers.get(Slot::GridSet, Some(GridOf::Liquid)) {
+                self.ctx.queue.write_buffer(b, 0, bytemuck::bytes_of(&gs));
+            }
+        }
         self.run_stages(passes::PLACE_AND_BIN)
     }
 
@@ -707,12 +858,40 @@ impl GpuSolver {
         (self.counts.liquid, self.counts.solid)
     }
 
+    /// (liquid capacity, solid count): what a render buffer set must hold.
+    pub fn frame_capacity(&self) -> (u32, u32) {
+        (self.capacity.max(self.counts.liquid), self.counts.solid)
+    }
+
+    /// Emitter and sink totals (reads the emitters' accounts back when there are emitters).
+    pub fn emit_totals(&self) -> Result<super::EmitTotals, SimError> {
+        let mut t = super::EmitTotals {
+            emitted: self.emitted,
+            sunk: self.sunk,
+            live_liquid: u64::from(self.counts.liquid),
+            capacity: u64::from(self.capacity),
+            capacity_reached: self.capacity_hit,
+            ..Default::default()
+        };
+        if self.emit_active {
+            let st: Vec<gpu_types::EmitStateGpu> = self.read_slot(Slot::EmitState, 1)?;
+            if let Some(st) = st.first() {
+                for em in st.emitters.iter().take(st.n_emitters as usize) {
+                    t.emitted_volume_m3 += f64::from(em.count) * f64::from(em.volume);
+                    t.backlog_m3 += f64::from(em.acc.max(0.0));
+                    t.per_emitter.push(u64::from(em.count));
+                }
+            }
+        }
+        Ok(t)
+    }
+
     /// Copies the render data into `frame` (buffer-to-buffer on this device, no readback) and submits.
     /// `frame` must have been created on this solver's device with its particle counts.
     pub fn publish(&self, frame: &super::frame::FrameBuffers) -> Result<(), GpuError> {
         use super::frame::{LIQUID_POS_BYTES, SOLID_DENS_BYTES, SOLID_POS_BYTES, SOLID_STRESS_BYTES, U32_BYTES};
         let (nl, ns) = (u64::from(self.counts.liquid), u64::from(self.counts.solid));
-        if frame.n_liquid as u64 != nl || frame.n_solid as u64 != ns {
+        if (frame.n_liquid as u64) < nl || frame.n_solid as u64 != ns {
             return Err(GpuError::Validation {
                 context: "publish".into(),
                 message: format!(
@@ -789,6 +968,17 @@ impl GpuSolver {
                 self.upload_objects(*t)?;
                 self.run_stages(passes::PLACE_AND_BIN)?;
             }
+            Command::SetInflow { emitter, times, rates } => {
+                let table = crate::sim::inflow_table(times, rates)?;
+                let n = self.emit_count;
+                if *emitter >= n {
+                    return Err(SimError::BadCommand(format!("no emitter #{emitter}")));
+                }
+                let mut region = vec![0f32; gpu_types::FLOW_STRIDE];
+                flow_region(&table, &mut region);
+                let off = (*emitter * gpu_types::FLOW_STRIDE * 4) as u64;
+                self.ctx.queue.write_buffer(self.buffer(Slot::EmitFlow)?, off, bytemuck::cast_slice(&region));
+            }
         }
         Ok(())
     }
@@ -813,6 +1003,7 @@ impl GpuSolver {
         let table: Vec<u32> = self.read_slot(Slot::BondTable, ns * cap)?;
         let count: Vec<u32> = self.read_slot(Slot::BondCount, ns)?;
         let bp: Vec<[f32; 4]> = self.read_slot(Slot::BoundaryPos, nb)?;
+        let liquid_ids: Vec<u32> = self.read_slot(Slot::LiquidId, nl)?;
         let phase = |p: &[[f32; 4]], v: &[[f32; 4]], d: &[[f32; 4]]| PhaseState {
             id: (0..p.len() as u32).collect(),
             pos: p.iter().map(xyz).collect(),
@@ -826,7 +1017,7 @@ impl GpuSolver {
         Ok(State {
             t: self.t,
             steps: self.steps,
-            liquid: phase(&lp, &lv, &ld),
+            liquid: PhaseState { id: liquid_ids, ..phase(&lp, &lv, &ld) },
             solid: phase(&sp, &sv, &sd),
             solid_extra: SolidExtra {
                 flags: self.solid_flags.clone(),
@@ -838,6 +1029,17 @@ impl GpuSolver {
             boundary: BoundaryState { pos: bp.iter().map(xyz).collect(), object: self.boundary_object.clone() },
         })
     }
+}
+
+/// Writes `table` into one emitter's region of the flow buffer (`FLOW_STRIDE` floats, emit.wgsl).
+fn flow_region(table: &super::cpu::emit::FlowTable, out: &mut [f32]) {
+    let n = table.times.len().min(table.rates.len()).min(super::cpu::emit::FLOW_MAX);
+    out.fill(0.0);
+    out[0] = f32::from_bits(n as u32);
+    out[1] = table.period;
+    let fm = super::cpu::emit::FLOW_MAX;
+    out[4..4 + n].copy_from_slice(&table.times[..n]);
+    out[4 + fm..4 + fm + n].copy_from_slice(&table.rates[..n]);
 }
 
 fn dt_limit(code: u32) -> DtLimit {

@@ -181,8 +181,12 @@ pub const DT_REDUCE_SOLID: PassSpec =
     pass("dt_reduce_solid", "dt", &[Params, Step, SolidAcc, SolidDens, SolidFlags], Dispatch::Solid);
 pub const DT_FINALIZE: PassSpec =
     PassSpec { entry: "dt_finalize", family: "dt", workgroup_size: 1, slots: &[Params, Step], dispatch: Dispatch::One };
-pub const INTEGRATE_PREDICT_LIQUID: PassSpec =
-    pass("integrate_predict_liquid", "integrate", &[Params, Step, LiquidVel, LiquidAcc, LiquidAcc0], Dispatch::Liquid);
+pub const INTEGRATE_PREDICT_LIQUID: PassSpec = pass(
+    "integrate_predict_liquid",
+    "integrate",
+    &[Params, Step, LiquidPos, LiquidVel, LiquidAcc, LiquidAcc0, EmitState],
+    Dispatch::Liquid,
+);
 pub const INTEGRATE_PREDICT_SOLID: PassSpec = pass(
     "integrate_predict_solid",
     "integrate",
@@ -192,7 +196,7 @@ pub const INTEGRATE_PREDICT_SOLID: PassSpec = pass(
 pub const INTEGRATE_ADVANCE_LIQUID: PassSpec = pass(
     "integrate_advance_liquid",
     "integrate",
-    &[Params, Step, LiquidPos, LiquidVelAdv, LiquidAcc0],
+    &[Params, Step, LiquidPos, LiquidVelAdv, LiquidAcc0, EmitState],
     Dispatch::Liquid,
 );
 pub const INTEGRATE_ADVANCE_SOLID: PassSpec = pass(
@@ -207,8 +211,12 @@ pub const INTEGRATE_BOUNDARY: PassSpec = pass(
     &[Params, Objects, BoundaryPos, BoundaryVel, BoundaryPos0],
     Dispatch::Boundary,
 );
-pub const INTEGRATE_CORRECT_LIQUID: PassSpec =
-    pass("integrate_correct_liquid", "integrate", &[Params, Step, LiquidVel, LiquidAcc, LiquidAcc0], Dispatch::Liquid);
+pub const INTEGRATE_CORRECT_LIQUID: PassSpec = pass(
+    "integrate_correct_liquid",
+    "integrate",
+    &[Params, Step, LiquidPos, LiquidVel, LiquidAcc, LiquidAcc0, EmitState],
+    Dispatch::Liquid,
+);
 pub const INTEGRATE_CORRECT_SOLID: PassSpec = pass(
     "integrate_correct_solid",
     "integrate",
@@ -233,11 +241,62 @@ pub const BATCH_MOTION: PassSpec = PassSpec {
     entry: "batch_motion",
     family: "batch",
     workgroup_size: 1,
-    slots: &[Params, Step, Objects, Batch, Motions, IndirectArgs],
+    slots: &[Params, Step, Objects, Batch, Motions, IndirectArgs, EmitState, EmitFlow],
     dispatch: Dispatch::One,
 };
 pub const BATCH_END: PassSpec =
     PassSpec { entry: "batch_end", family: "batch", workgroup_size: 1, slots: &[Step, Batch], dispatch: Dispatch::One };
+
+pub const EMIT_CLEAR: PassSpec = PassSpec {
+    entry: "emit_clear",
+    family: "emit",
+    workgroup_size: WORKGROUP,
+    slots: &[Params, Batch, EmitState, EmitBlocked],
+    dispatch: Dispatch::One,
+};
+pub const EMIT_MARK: PassSpec =
+    pass("emit_mark", "emit", &[Params, EmitState, EmitSlots, EmitBlocked, LiquidPos], Dispatch::Liquid);
+/// One workgroup of this size compacts the liquid arrays (emit.wgsl `COMPACT_WG`).
+pub const COMPACT_WORKGROUP: u32 = 256;
+pub const EMIT_COMPACT: PassSpec = PassSpec {
+    entry: "emit_compact",
+    family: "emit",
+    workgroup_size: COMPACT_WORKGROUP,
+    slots: &[Params, Batch, EmitState, LiquidPos, LiquidVel, LiquidAcc0, LiquidId],
+    dispatch: Dispatch::One,
+};
+pub const EMIT_APPLY: PassSpec = PassSpec {
+    entry: "emit_apply",
+    family: "emit",
+    workgroup_size: 1,
+    slots: &[
+        Step,
+        Batch,
+        IndirectArgs,
+        EmitState,
+        EmitSlots,
+        EmitBlocked,
+        EmitFlow,
+        LiquidPos,
+        LiquidVel,
+        LiquidVelAdv,
+        LiquidAcc,
+        LiquidAcc0,
+        LiquidDens,
+        LiquidId,
+    ],
+    dispatch: Dispatch::One,
+};
+
+/// Sinks and emitters of one step (`emit::emit_step`), after the advance, before the grids; the host
+/// then copies the live liquid count into the uniforms (`Stage::SyncCounts`).
+pub const STEP_EMIT: &[Stage] = &[
+    Stage::Pass(EMIT_CLEAR),
+    Stage::Pass(EMIT_MARK),
+    Stage::Pass(EMIT_COMPACT),
+    Stage::Pass(EMIT_APPLY),
+    Stage::SyncCounts,
+];
 
 /// Every entry point (pipelines are created for each; tests check each against naga).
 pub const ALL_PASSES: &[PassSpec] = &[
@@ -271,6 +330,10 @@ pub const ALL_PASSES: &[PassSpec] = &[
     BATCH_BEGIN,
     BATCH_MOTION,
     BATCH_END,
+    EMIT_CLEAR,
+    EMIT_MARK,
+    EMIT_COMPACT,
+    EMIT_APPLY,
 ];
 
 /// A set binned by the grid passes.
@@ -287,6 +350,8 @@ pub enum Stage {
     Pass(PassSpec),
     /// grid_clear · grid_count · grid_scan · grid_scatter · grid_sort_cells for one set.
     Grid(GridOf),
+    /// Not a dispatch: the host copies `batch.n_liquid` into the uniforms' liquid count (emitters).
+    SyncCounts,
 }
 
 /// The grid build of one set (twin: `grid::grid_build`).
@@ -324,14 +389,19 @@ pub const STEP_FIRST: &[Stage] = &[
     Stage::Pass(DT_FINALIZE),
 ];
 
-/// Second half: predictor, F update, advance, boundaries and grids at tⁿ⁺¹, evaluation 1, corrector,
-/// fracture, divergence check.
-pub const STEP_SECOND: &[Stage] = &[
+/// Second half, up to the advance: predictor, F update, advance to xⁿ⁺¹ (then [`STEP_EMIT`] when the
+/// scenario has emitters or sinks).
+pub const STEP_ADVANCE: &[Stage] = &[
     Stage::Pass(INTEGRATE_PREDICT_LIQUID),
     Stage::Pass(INTEGRATE_PREDICT_SOLID),
     Stage::Pass(SOLID_DEF_GRAD),
     Stage::Pass(INTEGRATE_ADVANCE_LIQUID),
     Stage::Pass(INTEGRATE_ADVANCE_SOLID),
+];
+
+/// Rest of the second half: boundaries and grids at tⁿ⁺¹, evaluation 1, corrector, fracture,
+/// divergence check.
+pub const STEP_SECOND: &[Stage] = &[
     Stage::Pass(INTEGRATE_BOUNDARY),
     Stage::Grid(GridOf::Liquid),
     Stage::Grid(GridOf::Solid),

@@ -14,6 +14,7 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
     ("dt", include_str!("../../../shaders/dt.wgsl")),
     ("fracture", include_str!("../../../shaders/fracture.wgsl")),
     ("batch", include_str!("../../../shaders/batch.wgsl")),
+    ("emit", include_str!("../../../shaders/emit.wgsl")),
     // The renderer's passes (src/render/): same registry, same validation test.
     ("render_common", include_str!("../../../shaders/render_common.wgsl")),
     ("render_particles", include_str!("../../../shaders/render_particles.wgsl")),
