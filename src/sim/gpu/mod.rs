@@ -23,6 +23,12 @@
 //! is a batch of one. One batch in 32 is timed per pass family with timestamp queries when the device
 //! has them (`pass_times`). The initial state, the bond table (built once, SPEC §4.6) and the object
 //! shapes come from `CpuSolver::new`, so both back-ends start bit-identical.
+//!
+//! Emitters and sinks (`shaders/emit.wgsl`, twin `sim::cpu::emit`) change the liquid count on the GPU:
+//! the liquid buffers hold the scenario's capacity, the live count is `batch.n_liquid`, and after the
+//! emitter passes the host-encoded copy `Stage::SyncCounts` puts it into the uniforms' `counts.x` and
+//! the liquid grid set, while `emit_apply` rewrites the liquid dispatch arguments; the host learns the
+//! count from the batch readback. Without emitters or sinks none of this is encoded.
 
 pub mod bindings;
 pub mod buffers;
