@@ -124,7 +124,7 @@ pub struct EmitState {
     pub capacity_reached: bool,
 }
 
-/// Sink or region geometry in simulation coordinates (box [a, b] or sphere centre a, radius b.x).
+/// A region's geometry in simulation coordinates (boundary objects, inlets, sinks) (box [a, b] or sphere centre a, radius b.x).
 pub fn region_geom(params: &Params, r: &Region) -> ObjectGeom {
     match r {
         Region::Box { min, max } => ObjectGeom { kind: 0, a: params.to_sim(*min), b: params.to_sim(*max) },

@@ -228,18 +228,7 @@ impl CpuSolver {
                 }
             })
             .collect();
-        let shapes: Vec<forces::ObjectGeom> = g
-            .objects
-            .iter()
-            .map(|o| match &o.shape {
-                crate::scenario::Region::Box { min, max } => {
-                    forces::ObjectGeom { kind: 0, a: params.to_sim(*min), b: params.to_sim(*max) }
-                }
-                crate::scenario::Region::Sphere { centre, radius } => {
-                    forces::ObjectGeom { kind: 1, a: params.to_sim(*centre), b: Vec3::new(*radius as f32, 0.0, 0.0) }
-                }
-            })
-            .collect();
+        let shapes: Vec<forces::ObjectGeom> = g.objects.iter().map(|o| emit::region_geom(&params, &o.shape)).collect();
         let gravity = params.gravity;
         let emit = emit::EmitState::new(&params, g);
         let pool = std::sync::Arc::new(

@@ -1061,17 +1061,7 @@ fn dt_limit(code: u32) -> DtLimit {
 
 /// Object shapes at rest in simulation coordinates (as `CpuSolver::new`).
 fn object_shapes(params: &Params, objects: &[BoundaryObject]) -> Vec<ObjectGeom> {
-    objects
-        .iter()
-        .map(|o| match &o.shape {
-            crate::scenario::Region::Box { min, max } => {
-                ObjectGeom { kind: 0, a: params.to_sim(*min), b: params.to_sim(*max) }
-            }
-            crate::scenario::Region::Sphere { centre, radius } => {
-                ObjectGeom { kind: 1, a: params.to_sim(*centre), b: Vec3::new(*radius as f32, 0.0, 0.0) }
-            }
-        })
-        .collect()
+    objects.iter().map(|o| super::cpu::emit::region_geom(params, &o.shape)).collect()
 }
 
 /// The object table at time t (twin of `CpuSolver::move_boundaries`: same f64 → f32 conversions).
