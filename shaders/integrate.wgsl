@@ -67,7 +67,84 @@ fn integrate_predict_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
-// xⁿ⁺¹ = xⁿ + Δt ṽⁿ + ½Δt² a⁰ (2.65).
+// Contact with the rigid boundary objects at tⁿ⁺¹ (twin: cpu::integrate::object_contact): a particle
+// inside an object's shape goes back onto the nearest face (box) or the sphere, and the inward part of
+// its velocity relative to the object is removed. Returns the new position (xyz) and velocity.
+struct Contact {
+    x: vec3<f32>,
+    v: vec3<f32>,
+}
+
+fn object_contact(x_in: vec3<f32>, v_in: vec3<f32>) -> Contact {
+    var x = x_in;
+    var v = v_in;
+    var dims = 2;
+    if (params.switches.x != 0u) {
+        dims = 3;
+    }
+    let n_obj = params.switches.w;
+    for (var k = 0u; k < n_obj; k++) {
+        let o = objects[k];
+        var n = vec3<f32>(0.0);
+        var inside = false;
+        if (o.kind == 0u) {
+            inside = true;
+            for (var a = 0; a < dims; a++) {
+                if (!(x[a] > o.geom_a[a] && x[a] < o.geom_b[a])) {
+                    inside = false;
+                }
+            }
+            if (inside) {
+                var best = 3.0e38;
+                var axis = 0;
+                var side = -1.0;
+                for (var a = 0; a < dims; a++) {
+                    let lo = x[a] - o.geom_a[a];
+                    let hi = o.geom_b[a] - x[a];
+                    if (lo < best) {
+                        best = lo;
+                        axis = a;
+                        side = -1.0;
+                    }
+                    if (hi < best) {
+                        best = hi;
+                        axis = a;
+                        side = 1.0;
+                    }
+                }
+                if (side < 0.0) {
+                    x[axis] = o.geom_a[axis];
+                } else {
+                    x[axis] = o.geom_b[axis];
+                }
+                n[axis] = side;
+            }
+        } else if (o.kind == 1u) {
+            let d = x - o.geom_a.xyz;
+            let len = length(d);
+            if (len < o.geom_b.x) {
+                inside = true;
+                if (len > 0.0) {
+                    n = d / len;
+                } else if (dims == 3) {
+                    n = vec3<f32>(0.0, 0.0, 1.0);
+                } else {
+                    n = vec3<f32>(0.0, 1.0, 0.0);
+                }
+                x = o.geom_a.xyz + n * o.geom_b.x;
+            }
+        }
+        if (inside) {
+            let vn = dot(v - o.vel.xyz, n);
+            if (vn < 0.0) {
+                v = v - n * vn;
+            }
+        }
+    }
+    return Contact(x, v);
+}
+
+// xⁿ⁺¹ = xⁿ + Δt ṽⁿ + ½Δt² a⁰ (2.65), then object_contact (not for inlet buffers).
 @compute @workgroup_size(64)
 fn integrate_advance_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
@@ -83,10 +160,17 @@ fn integrate_advance_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         adv = u.xyz;
     }
     let x = wrap_periodic(p.xyz + adv * dt + liquid_acc0[i].xyz * half_dt2);
-    liquid_pos[i] = vec4<f32>(x, p.w);
+    if (u.w != 0.0) {
+        liquid_pos[i] = vec4<f32>(x, p.w);
+        return;
+    }
+    let v4 = liquid_vel[i];
+    let c = object_contact(x, v4.xyz);
+    liquid_pos[i] = vec4<f32>(c.x, p.w);
+    liquid_vel[i] = vec4<f32>(c.v, v4.w);
 }
 
-// xⁿ⁺¹ = xⁿ + Δx, ρ^p = ρⁿ + Δt D⁰ (2.66).
+// xⁿ⁺¹ = xⁿ + Δx, ρ^p = ρⁿ + Δt D⁰ (2.66), then object_contact (not for kinematic particles).
 @compute @workgroup_size(64)
 fn integrate_advance_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
@@ -95,9 +179,15 @@ fn integrate_advance_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let dt = step.dt;
     let p = solid_pos[i];
-    solid_pos[i] = vec4<f32>(wrap_periodic(p.xyz + solid_disp[i].xyz), p.w);
+    let x = wrap_periodic(p.xyz + solid_disp[i].xyz);
     if ((solid_flags[i] & SOLID_KINEMATIC) == 0u) {
+        let v4 = solid_vel[i];
+        let c = object_contact(x, v4.xyz);
+        solid_pos[i] = vec4<f32>(c.x, p.w);
+        solid_vel[i] = vec4<f32>(c.v, v4.w);
         solid_dens[i].x = solid_dens[i].x + dt * solid_drho[i].y;
+    } else {
+        solid_pos[i] = vec4<f32>(x, p.w);
     }
 }
 

@@ -4,6 +4,7 @@
 //! keep their prescribed (here: fixed) state.
 
 use super::CpuState;
+use super::forces::ObjectGeom;
 use crate::scenario::SolidFlags;
 use crate::sim::params::Params;
 use glam::Vec3;
@@ -58,19 +59,92 @@ pub fn wrap_periodic(p: &Params, mut x: Vec3) -> Vec3 {
     x
 }
 
-/// integrate_advance: xⁿ⁺¹ = xⁿ + Δt ṽⁿ + ½Δt²a⁰ (2.65), ρ^p = ρⁿ + Δt D⁰ (2.66).
-pub fn integrate_advance(p: &Params, st: &mut CpuState, dt: f32) {
+/// Contact with the rigid boundary objects (SPEC §4.1 "impenetrable objects", §7.5 penetration
+/// invariant; README: deviations): a material particle found inside an object's shape at tⁿ⁺¹ is put
+/// back on the nearest face (box) or on the sphere, and the part of its velocity relative to the object
+/// that points into the object is removed (inelastic normal contact; the tangential part is left to
+/// the no-slip viscous term). The virtual particles alone cannot guarantee this: blood that has left
+/// the tissue is pressureless until it is compressed to nˡ = 1 (2.53 clamped at 0), so it falls
+/// through a plate's particle layers. Objects of kind 2 (no shape) are skipped. Twin of
+/// `object_contact` in `shaders/integrate.wgsl`, in the same f32 operations.
+#[inline]
+pub fn object_contact(geoms: &[ObjectGeom], vel: &[Vec3], three_d: bool, x: &mut Vec3, v: &mut Vec3) {
+    let dims = if three_d { 3 } else { 2 };
+    for (g, vo) in geoms.iter().zip(vel) {
+        let mut n = Vec3::ZERO;
+        let mut inside = false;
+        if g.kind == 0 {
+            inside = (0..dims).all(|a| x[a] > g.a[a] && x[a] < g.b[a]);
+            if inside {
+                // nearest face: smallest depth, first axis and the low side on ties
+                let mut best = f32::INFINITY;
+                let mut axis = 0usize;
+                let mut side = -1.0f32;
+                for a in 0..dims {
+                    let lo = x[a] - g.a[a];
+                    let hi = g.b[a] - x[a];
+                    if lo < best {
+                        best = lo;
+                        axis = a;
+                        side = -1.0;
+                    }
+                    if hi < best {
+                        best = hi;
+                        axis = a;
+                        side = 1.0;
+                    }
+                }
+                x[axis] = if side < 0.0 { g.a[axis] } else { g.b[axis] };
+                n[axis] = side;
+            }
+        } else if g.kind == 1 {
+            let d = *x - g.a;
+            let len = d.length();
+            if len < g.b.x {
+                inside = true;
+                n = if len > 0.0 {
+                    d / len
+                } else if three_d {
+                    Vec3::Z
+                } else {
+                    Vec3::Y
+                };
+                *x = g.a + n * g.b.x;
+            }
+        }
+        if inside {
+            let vn = (*v - *vo).dot(n);
+            if vn < 0.0 {
+                *v -= n * vn;
+            }
+        }
+    }
+}
+
+/// integrate_advance: xⁿ⁺¹ = xⁿ + Δt ṽⁿ + ½Δt²a⁰ (2.65), ρ^p = ρⁿ + Δt D⁰ (2.66), then
+/// [`object_contact`] against the objects at tⁿ⁺¹ (`geoms`, `vel`) for every particle that is not
+/// kinematic (inlet buffers, clamps).
+pub fn integrate_advance(p: &Params, st: &mut CpuState, dt: f32, geoms: &[ObjectGeom], vel: &[Vec3]) {
     let half_dt2 = 0.5 * dt * dt;
     let three_d = p.dim.n() == 3;
     let l = &mut st.liquid;
     let (vx, a0, emit) = (&l.vx, &l.a0, &st.emit);
-    l.x.par_iter_mut().enumerate().for_each(|(i, x)| {
-        let adv = super::emit::inlet_velocity(emit, *x, three_d).unwrap_or(vx[i]);
-        *x = wrap_periodic(p, *x + adv * dt + a0[i] * half_dt2)
+    l.x.par_iter_mut().zip(l.v.par_iter_mut()).enumerate().for_each(|(i, (x, v))| {
+        let inlet = super::emit::inlet_velocity(emit, *x, three_d);
+        let adv = inlet.unwrap_or(vx[i]);
+        *x = wrap_periodic(p, *x + adv * dt + a0[i] * half_dt2);
+        if inlet.is_none() {
+            object_contact(geoms, vel, three_d, x, v);
+        }
     });
     let s = &mut st.solid;
-    let (dx, drho0) = (&s.dx, &s.drho0);
-    s.x.par_iter_mut().enumerate().for_each(|(i, x)| *x = wrap_periodic(p, *x + dx[i]));
+    let (dx, drho0, flags) = (&s.dx, &s.drho0, &s.flags);
+    s.x.par_iter_mut().zip(s.v.par_iter_mut()).enumerate().for_each(|(i, (x, v))| {
+        *x = wrap_periodic(p, *x + dx[i]);
+        if flags[i] & SolidFlags::KINEMATIC == 0 {
+            object_contact(geoms, vel, three_d, x, v);
+        }
+    });
     let flags = &s.flags;
     s.rho.par_iter_mut().enumerate().for_each(|(i, r)| {
         if flags[i] & SolidFlags::KINEMATIC == 0 {

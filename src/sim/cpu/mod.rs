@@ -284,6 +284,19 @@ impl CpuSolver {
         }
     }
 
+    /// Velocity of every boundary object at time t (as `move_boundaries` gives its particles).
+    fn object_velocities(&self, t: f64) -> Vec<Vec3> {
+        let three = self.params.dim.n() == 3;
+        self.st
+            .objects
+            .iter()
+            .map(|o| {
+                let v = motion_at(&o.motion, t).1;
+                Vec3::new(v[0] as f32, v[1] as f32, if three { v[2] as f32 } else { 0.0 })
+            })
+            .collect()
+    }
+
     pub fn build_grids(&mut self) {
         let g = &self.params.grid;
         grid::grid_build(g, &self.st.liquid.x, &mut self.grids.liquid);
@@ -410,13 +423,15 @@ impl CpuSolver {
             solid::solid_def_grad(&self.params, &mut self.st.solid);
         }
         let t0 = self.timers.lap("solid", t0);
-        integrate::integrate_advance(&self.params, &mut self.st, dt);
+        // 6 (first half): boundaries → tⁿ⁺¹, so that the advance meets the objects where they will be.
+        self.move_boundaries(t_next);
+        let vel = self.object_velocities(t_next);
+        integrate::integrate_advance(&self.params, &mut self.st, dt, &self.geoms, &vel);
         let t0 = self.timers.lap("integrate", t0);
         // 5½: sinks and emitters on xⁿ⁺¹ (issue 7).
         emit::emit_step(&self.params, &mut self.st, dt, t_next);
         let t0 = self.timers.lap("emit", t0);
-        // 6: boundaries → tⁿ⁺¹, grid on xⁿ⁺¹.
-        self.move_boundaries(t_next);
+        // 6: grid on xⁿ⁺¹.
         self.build_grids();
         self.timers.lap("grid", t0);
         // 7–8: evaluation 1 and corrector.

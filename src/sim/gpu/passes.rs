@@ -196,13 +196,13 @@ pub const INTEGRATE_PREDICT_SOLID: PassSpec = pass(
 pub const INTEGRATE_ADVANCE_LIQUID: PassSpec = pass(
     "integrate_advance_liquid",
     "integrate",
-    &[Params, Step, LiquidPos, LiquidVelAdv, LiquidAcc0, EmitState],
+    &[Params, Step, LiquidPos, LiquidVel, LiquidVelAdv, LiquidAcc0, EmitState, Objects],
     Dispatch::Liquid,
 );
 pub const INTEGRATE_ADVANCE_SOLID: PassSpec = pass(
     "integrate_advance_solid",
     "integrate",
-    &[Params, Step, SolidPos, SolidDisp, SolidDens, SolidDrho, SolidFlags],
+    &[Params, Step, SolidPos, SolidVel, SolidDisp, SolidDens, SolidDrho, SolidFlags, Objects],
     Dispatch::Solid,
 );
 pub const INTEGRATE_BOUNDARY: PassSpec = pass(

@@ -1,0 +1,183 @@
+//! The medical examples of thesis §4.2 (issue 6 §4, SPEC §7.5–7.10) at reduced resolution: each test
+//! loads the shipped scenario file (full resolution there) and re-grids it with `--set`-style
+//! overrides to n³ solid / (n − 1)³ liquid particles, one h = 1.3Δx_s, no relaxation.
+//!
+//! The thesis's time scales (seconds of drainage at ≈ 1 cm/s, an indenter at 5 mm/s) are far beyond a
+//! test on two CPU cores, so where a test needs a shorter time scale it says which parameter it changes
+//! and why; the claim checked is the thesis's, with SPEC's acceptance where it applies.
+
+use glam::Vec3;
+use perfuse::scenario::Scenario;
+use perfuse::sim::{BackendKind, Simulation, State};
+use std::path::Path;
+
+/// Cube side L_c of the specimen scenarios [m].
+const L_C: f64 = 0.05;
+
+/// The shipped scenario `file` re-gridded to n³ solid and (n − 1)³ liquid particles, plus `extra`.
+fn specimen(file: &str, n: usize, extra: &[&str]) -> Scenario {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios").join(file);
+    let dx_s = L_C / n as f64;
+    let mut set = vec![
+        "relaxation=null".to_string(),
+        format!("numerics.dx_solid={dx_s}"),
+        format!("numerics.dx_liquid={}", L_C / (n - 1) as f64),
+        format!("numerics.h_liquid={}", 1.3 * dx_s),
+        format!("boundaries.0.spacing={dx_s}"),
+        format!("boundaries.0.shape.min=[-0.075, -0.075, {}]", -3.0 * dx_s),
+    ];
+    set.extend(extra.iter().map(|s| s.to_string()));
+    Scenario::load_with_overrides(&path, &set).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Material particles closer than 0.3Δx_b to a boundary particle (SPEC §7.5 penetration invariant).
+fn penetrating(s: &State, dx_b: f32) -> usize {
+    let lim2 = (0.3 * dx_b).powi(2);
+    s.liquid
+        .pos
+        .iter()
+        .chain(&s.solid.pos)
+        .filter(|x| s.boundary.pos.iter().any(|b| (*b - **x).length_squared() < lim2))
+        .count()
+}
+
+fn mean(v: impl Iterator<Item = f32>) -> f32 {
+    let (s, n) = v.fold((0.0f32, 0usize), |(s, n), x| (s + x, n + 1));
+    s / n.max(1) as f32
+}
+
+/// Oozing (thesis §4.2.1, SPEC §7.6): without a membrane the blood drains onto the plate and spreads
+/// there, the top of the specimen dries and contracts toward nˢ_dry = 0.8 (eq. 2.52, k_s = k_sat).
+///
+/// Time scale: drainage runs at the Darcy speed nˡρ₀g/((1 − nˢ)K̄) — 1 cm/s with the thesis's
+/// K̄ = 10⁶ Pa·s/m², i.e. seconds for a 5 cm cube. The test takes K̄ = 4×10⁴ (25 cm/s) and all
+/// stiffnesses ÷ 10 (C10, C01, k_s, k_sat, k_l; nˢ_dry is unchanged, Δt three times larger), so 0.2 s
+/// shows what the thesis shows over 5 s; SPEC's thresholds are kept. 10³ solid + 9³ liquid
+/// particles, ≈ 3000 steps (≈ 40 s on two cores).
+#[test]
+fn oozing_drains_onto_the_plate_and_the_top_dries() {
+    let sc = specimen(
+        "oozing.ron",
+        10,
+        &[
+            "solid.friction=4e4",
+            "solid.c10=1e4",
+            "solid.c01=40",
+            "solid.k_s=1e4",
+            "solid.k_sat=1e4",
+            "liquid.stiffness=1e4",
+        ],
+    );
+    let dx_b = (L_C / 10.0) as f32;
+    let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    sim.step().expect("first step");
+    let s0 = sim.read_state().expect("state");
+    let n_liquid = s0.liquid.len() as f32;
+    let z_top = s0.solid.pos.iter().map(|x| x.z).fold(f32::MIN, f32::max);
+    // solid particles of the top quarter (by their initial height)
+    let top: Vec<usize> = (0..s0.solid.len()).filter(|&i| s0.solid.pos[i].z > 0.75 * z_top).collect();
+    let top_nl = |s: &State| mean(top.iter().map(|&i| s.solid.n_l[i]));
+    let top_ns = |s: &State| mean(top.iter().map(|&i| s.solid.n_s[i]));
+    let (nl0, ns0) = (top_nl(&s0), top_ns(&s0));
+    let mass0 = s0.liquid.total_mass();
+    let mut outside = Vec::new();
+    let mut last = s0;
+    for k in 1..=8 {
+        sim.advance_until(0.025 * k as f64, 1_000_000, |_| {}).expect("run");
+        let s = sim.read_state().expect("state");
+        assert_eq!(penetrating(&s, dx_b), 0, "particles inside the plate at t = {:.3}", s.t);
+        assert!(top_ns(&s) <= 0.82, "the top never packs beyond nˢ_dry + 0.02: {}", top_ns(&s));
+        outside.push(s.liquid_outside() as f32 / n_liquid);
+        last = s;
+    }
+    let (nl1, ns1) = (top_nl(&last), top_ns(&last));
+    eprintln!("oozing: liquid outside {outside:?}; top quarter nˡ {nl0:.3} → {nl1:.3}, nˢ {ns0:.3} → {ns1:.3}");
+    // (1) liquid leaves the tissue and does not go back: ≥ 20 % outside at the end, never falling by > 0.02
+    assert!(*outside.last().unwrap() >= 0.2, "{outside:?}");
+    for w in outside.windows(2) {
+        assert!(w[1] >= w[0] - 0.02, "liquid outside fell: {outside:?}");
+    }
+    // (2) the top dries (nˡ −25 % or more) and contracts (nˢ up, toward 0.8)
+    assert!(nl1 <= 0.75 * nl0, "top nˡ {nl0} → {nl1}");
+    assert!(ns1 > ns0 + 0.1 && (ns1 - 0.8).abs() < 0.02, "top nˢ {ns0} → {ns1} (nˢ_dry = 0.8)");
+    // (3) the liquid outside lies on the plate and has spread beyond the specimen's footprint
+    let out: Vec<Vec3> = (0..last.liquid.len())
+        .filter(|&i| last.liquid.n_s[i] < perfuse::sim::state::LIQUID_OUTSIDE_NS)
+        .map(|i| last.liquid.pos[i])
+        .collect();
+    let low = out.iter().filter(|x| x.z <= 0.2 * L_C as f32).count();
+    assert!(low as f32 >= 0.9 * out.len() as f32, "{low} of {} on the plate", out.len());
+    let reach = out.iter().map(|x| x.x.abs().max(x.y.abs())).fold(0.0f32, f32::max);
+    assert!(reach > 0.5 * L_C as f32, "puddle reaches {reach} m from the axis");
+    assert_eq!(last.liquid.total_mass(), mass0, "liquid mass conserved");
+}
+
+/// Indentation of the membrane-enclosed specimen (thesis §4.2.2, SPEC §7.7, issue 6 §1): the indenter
+/// presses 30 % of the specimen's height and withdraws; no liquid particle crosses the capsule and the
+/// specimen bulges laterally (at least half the bulge that volume preservation gives for the displaced
+/// spherical cap spread over the four side faces).
+///
+/// Reduced: 8³ solid + 7³ liquid (membrane: 4 × 304 surface particles), no gravity (the unloaded cube is
+/// then its own equilibrium), stiffnesses ÷ 10 as in the oozing test, the stroke 0.2 s instead of 4 s
+/// (0.28 m/s peak, Mach < 0.1), the indenter starting Δx_s/2 above the top face; K̄ as the thesis.
+///
+/// Not asserted (open, issue 6): the residual dent. At this time scale the top rebounds and rings
+/// about 2 mm *above* its start after the indenter has left (measured −2.3 mm "residual"), so the
+/// thesis's hysteresis is not reproduced by this reduced run; it is printed for the record.
+#[test]
+fn indentation_bulges_and_does_not_leak() {
+    let n = 8;
+    let dx_s = L_C / n as f64;
+    let r_ind = 0.2 * L_C;
+    let amp = 0.3 * L_C + 0.5 * dx_s;
+    let sc = specimen(
+        "indentation.ron",
+        n,
+        &[
+            "gravity=[0.0, 0.0, 0.0]",
+            "solid.c10=1e4",
+            "solid.c01=40",
+            "solid.k_s=1e4",
+            "solid.k_sat=1e4",
+            "liquid.stiffness=1e4",
+            &format!("boundaries.1.spacing={}", 0.5 * dx_s),
+            &format!("boundaries.1.shape.centre=[0.0, 0.0, {}]", L_C + r_ind + 0.5 * dx_s),
+            &format!("boundaries.1.motion.amplitude=[0.0, 0.0, {amp}]"),
+            "boundaries.1.motion.frequency=2.5",
+        ],
+    );
+    let period = 0.4;
+    let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    sim.step().expect("first step");
+    let s0 = sim.read_state().expect("state");
+    let dx = dx_s as f32;
+    // d(t): the top of the solid on the axis (highest particle within Δx_s of it); X(t) = max |x|
+    let top = |s: &State| s.solid.pos.iter().filter(|p| p.x.hypot(p.y) < dx).map(|p| p.z).fold(f32::MIN, f32::max);
+    let lateral = |s: &State| s.solid.pos.iter().map(|p| p.x.abs()).fold(0.0f32, f32::max);
+    let (z0, x0) = (top(&s0), lateral(&s0));
+    let mut leaked = 0;
+    let mut deepest = (0.0f32, 0.0f32);
+    let mut residual = 0.0f32;
+    for k in 1..=10 {
+        sim.advance_until(period * k as f64 / 16.0, 1_000_000, |_| {}).expect("run");
+        let s = sim.read_state().expect("state");
+        leaked = leaked.max(s.liquid_outside());
+        if k == 4 {
+            deepest = (z0 - top(&s), lateral(&s) - x0);
+        }
+        residual = z0 - top(&s);
+    }
+    let (d, r) = (deepest.0 as f64, r_ind);
+    let bulge_volume = std::f64::consts::PI * d * d * (3.0 * r - d) / 3.0 / (4.0 * L_C * L_C);
+    eprintln!(
+        "indentation: depth at T/4 {:.2} mm, bulge {:.2} mm (volume preservation: {:.2} mm), top at 5T/8 {:.2} mm \
+         below its start, leaked {leaked}",
+        deepest.0 * 1e3,
+        deepest.1 * 1e3,
+        bulge_volume * 1e3,
+        residual * 1e3
+    );
+    assert_eq!(leaked, 0, "liquid particles outside the capsule");
+    assert!(deepest.0 > 0.2 * L_C as f32, "the indenter pressed {} m", deepest.0);
+    assert!(deepest.1 as f64 >= 0.5 * bulge_volume, "lateral bulge {} m", deepest.1);
+}
