@@ -175,3 +175,31 @@ pub fn integrate_correct(p: &Params, st: &mut CpuState, dt: f32) {
         }
     });
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A particle inside a box goes to the nearest face and keeps only outward/tangential relative
+    /// velocity; inside a moving sphere it goes radially onto the surface; outside nothing changes.
+    #[test]
+    fn object_contact_projects_onto_the_surface() {
+        let boxed = ObjectGeom { kind: 0, a: Vec3::new(-1.0, -1.0, -1.0), b: Vec3::new(1.0, 1.0, 0.0) };
+        let (mut x, mut v) = (Vec3::new(0.5, 0.0, -0.1), Vec3::new(0.3, 0.2, -2.0));
+        object_contact(&[boxed], &[Vec3::ZERO], true, &mut x, &mut v);
+        assert_eq!(x, Vec3::new(0.5, 0.0, 0.0));
+        assert_eq!(v, Vec3::new(0.3, 0.2, 0.0));
+        // leaving already: the velocity is kept
+        let (mut x, mut v) = (Vec3::new(0.0, 0.95, -0.5), Vec3::new(0.0, 1.0, 0.0));
+        object_contact(&[boxed], &[Vec3::ZERO], true, &mut x, &mut v);
+        assert_eq!((x, v), (Vec3::new(0.0, 1.0, -0.5), Vec3::new(0.0, 1.0, 0.0)));
+        // a sphere moving at +x pushes the particle along with it
+        let ball = ObjectGeom { kind: 1, a: Vec3::ZERO, b: Vec3::new(2.0, 0.0, 0.0) };
+        let (mut x, mut v) = (Vec3::new(1.0, 0.0, 0.0), Vec3::ZERO);
+        object_contact(&[ball], &[Vec3::new(5.0, 0.0, 0.0)], true, &mut x, &mut v);
+        assert_eq!((x, v), (Vec3::new(2.0, 0.0, 0.0), Vec3::new(5.0, 0.0, 0.0)));
+        let (mut x, mut v) = (Vec3::new(3.0, 0.0, 0.0), Vec3::new(-1.0, 0.0, 0.0));
+        object_contact(&[ball], &[Vec3::ZERO], true, &mut x, &mut v);
+        assert_eq!((x, v), (Vec3::new(3.0, 0.0, 0.0), Vec3::new(-1.0, 0.0, 0.0)));
+    }
+}

@@ -151,6 +151,8 @@ pub struct CpuSolver {
     /// Each object's shape at rest (simulation coordinates); `geoms` is it at the current pose.
     shapes: Vec<forces::ObjectGeom>,
     pub geoms: Vec<forces::ObjectGeom>,
+    /// Each object's velocity at the current pose (what its particles carry).
+    pub object_vel: Vec<Vec3>,
     last_good: CpuState,
     /// The step runs inside this pool so that its many parallel passes do not each pay a cross-thread
     /// injection from outside the pool.
@@ -240,6 +242,7 @@ impl CpuSolver {
             timers: PassTimers::default(),
             pool,
             geoms: shapes.clone(),
+            object_vel: vec![Vec3::ZERO; shapes.len()],
             shapes,
             params,
             st: CpuState { liquid, solid, boundary, objects: g.objects.clone(), gravity, emit, ..Default::default() },
@@ -274,7 +277,8 @@ impl CpuSolver {
             b.x[i] = b.x0[i] + d;
             b.v[i] = v;
         }
-        for (k, (d, _)) in motions.iter().enumerate() {
+        for (k, (d, v)) in motions.iter().enumerate() {
+            self.object_vel[k] = *v;
             let mut g = self.shapes[k];
             g.a += *d;
             if g.kind == 0 {
@@ -282,19 +286,6 @@ impl CpuSolver {
             }
             self.geoms[k] = g;
         }
-    }
-
-    /// Velocity of every boundary object at time t (as `move_boundaries` gives its particles).
-    fn object_velocities(&self, t: f64) -> Vec<Vec3> {
-        let three = self.params.dim.n() == 3;
-        self.st
-            .objects
-            .iter()
-            .map(|o| {
-                let v = motion_at(&o.motion, t).1;
-                Vec3::new(v[0] as f32, v[1] as f32, if three { v[2] as f32 } else { 0.0 })
-            })
-            .collect()
     }
 
     pub fn build_grids(&mut self) {
@@ -425,8 +416,7 @@ impl CpuSolver {
         let t0 = self.timers.lap("solid", t0);
         // 6 (first half): boundaries → tⁿ⁺¹, so that the advance meets the objects where they will be.
         self.move_boundaries(t_next);
-        let vel = self.object_velocities(t_next);
-        integrate::integrate_advance(&self.params, &mut self.st, dt, &self.geoms, &vel);
+        integrate::integrate_advance(&self.params, &mut self.st, dt, &self.geoms, &self.object_vel);
         let t0 = self.timers.lap("integrate", t0);
         // 5½: sinks and emitters on xⁿ⁺¹ (issue 7).
         emit::emit_step(&self.params, &mut self.st, dt, t_next);
