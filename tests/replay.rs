@@ -7,8 +7,8 @@ mod common;
 
 use common::gpu::gpu_test;
 use common::scenes::perfused_block;
-use perfuse::replay::format::read_recording_file;
-use perfuse::replay::session::{RecordedSimulation, Recorder, replay};
+use perfuse::replay::format::{ChunkKind, read_recording_file};
+use perfuse::replay::session::{Player, RecordedSimulation, Recorder, replay};
 use perfuse::sim::{BackendKind, Command, Simulation};
 
 fn temp(name: &str) -> std::path::PathBuf {
@@ -85,4 +85,170 @@ fn scripted_session_replays_bit_identically_on_the_gpu() {
     gpu_test("scripted_session_replays_bit_identically_on_the_gpu", |_ctx| {
         record_and_replay(BackendKind::Gpu, "gpu.pfr");
     });
+}
+
+/// The block scene with a short damped relaxation (the clock runs from −2 ms to 0 before the session).
+fn relaxed_block() -> perfuse::scenario::Scenario {
+    let text = common::scenes::PERFUSED_BLOCK_3D.replace(
+        "duration: 0.01,",
+        "duration: 0.01,\n    relaxation: Some(Relaxation(duration: 0.002, damping: 50.0)),",
+    );
+    perfuse::scenario::Scenario::from_str_named(&text, "relaxed_block.ron").expect("valid")
+}
+
+/// A scripted session with keyframes: relaxation (keyframe at its end), a tool path with a keyframe
+/// and state hash after each leg. Returns the recording's path and the steps of its keyframes.
+fn record_with_keyframes(backend: BackendKind, name: &str) -> (std::path::PathBuf, Vec<u64>) {
+    let sc = relaxed_block();
+    let path = temp(name);
+    let sim = Simulation::new(&sc, backend).expect("sim");
+    let recorder = Recorder::create(&path, &sc, &format!("{backend:?}"), "").expect("recorder");
+    let mut rs = RecordedSimulation { sim, recorder: Some(recorder) };
+    rs.relax().expect("relax");
+    rs.keyframe(None).expect("keyframe");
+    let mut keyframes = vec![rs.sim.stats().steps];
+    rs.apply(&Command::PlaceObject { object: 1, position: [0.0025, 0.003, 0.0052] }).expect("place");
+    for (k, p) in [[0.0035, 0.003, 0.0046], [0.0045, 0.0032, 0.0046]].iter().enumerate() {
+        rs.apply(&Command::MoveObject { object: 1, target: *p, speed: 0.05 }).expect("move");
+        rs.sim.advance(20 + 3 * k as u32, f64::INFINITY).expect("advance");
+        rs.checkpoint().expect("hash");
+        rs.sim.advance(7, f64::INFINITY).expect("advance");
+        rs.keyframe(None).expect("keyframe");
+        keyframes.push(rs.sim.stats().steps);
+    }
+    rs.apply(&Command::SetGravity([0.0, 0.0, -4.0])).expect("gravity");
+    rs.sim.advance(15, f64::INFINITY).expect("advance");
+    rs.checkpoint().expect("hash");
+    rs.recorder.take().expect("recording").finish().expect("finish");
+    (path, keyframes)
+}
+
+fn hash_of(p: &mut Player) -> u64 {
+    p.simulation_mut().read_state().expect("state").hash()
+}
+
+/// Seeking (back to a keyframe, forward past one, by time, and back before every keyframe) and then
+/// stepping gives bit for bit the state a straight replay reaches; a take-over branch names its
+/// parent, starts from a keyframe and replays to the live branch's final state.
+fn seek_and_take_over(backend: BackendKind, name: &str) {
+    let (path, keyframes) = record_with_keyframes(backend, name);
+    let rec = read_recording_file(&path).expect("readable");
+    assert!(rec.is_clean(), "relaxation commands must not break the time order: {:?}", rec.warnings);
+    assert_eq!(rec.chunks_of(ChunkKind::Keyframe).count(), 3);
+    // The relaxation's chunks sit at t = 0 on the timeline; stamps never decrease.
+    assert!(rec.chunks.windows(2).all(|w| w[0].t_s <= w[1].t_s && w[0].step <= w[1].step));
+    let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+    let end = rec.chunks.last().map(|c| c.step).expect("chunks");
+    let targets = [keyframes[1] + 5, keyframes[0] + 2, end];
+
+    // Straight replays to each target (a fresh player each time).
+    let straight: Vec<u64> = targets
+        .iter()
+        .map(|&s| {
+            let mut p = Player::new(rec.clone(), backend, true).expect("player");
+            p.play_to_step(s).expect("play");
+            assert_eq!(p.steps(), s);
+            hash_of(&mut p)
+        })
+        .collect();
+
+    // One player seeking around: to the end, back, back further, forward again.
+    let mut p = Player::new(rec.clone(), backend, true).expect("player");
+    p.play_to_end().expect("play");
+    assert!(p.at_end());
+    assert_eq!(hash_of(&mut p), straight[2]);
+    p.seek_step(targets[0]).expect("seek back");
+    assert_eq!(hash_of(&mut p), straight[0], "seek back to step {} then step ≠ straight run", targets[0]);
+    p.seek_step(targets[1]).expect("seek back further");
+    assert_eq!(hash_of(&mut p), straight[1], "seek to step {} ≠ straight run", targets[1]);
+    p.seek_step(targets[2]).expect("seek forward");
+    assert_eq!(hash_of(&mut p), straight[2]);
+    p.seek_step(1).expect("seek before every keyframe");
+    let mut fresh = Player::new(rec.clone(), backend, true).expect("player");
+    fresh.play_to_step(1).expect("play");
+    assert_eq!(hash_of(&mut p), hash_of(&mut fresh), "seek to the start ≠ straight run");
+    assert!(p.outcome().keyframes_restored >= 3, "{:?}", p.outcome());
+    assert!(p.outcome().mismatches.is_empty(), "{:?}", p.outcome().mismatches);
+
+    // By time: the state of the first step boundary at or past t (with every chunk stamped ≤ t).
+    let t_target = rec.chunks.iter().find(|c| c.step >= targets[0]).map(|c| c.t_s).expect("chunk");
+    p.seek_time(t_target).expect("seek time");
+    let at = p.steps();
+    let mut fresh = Player::new(rec.clone(), backend, true).expect("player");
+    fresh.play_to_time(t_target).expect("play");
+    assert_eq!(fresh.steps(), at);
+    assert_eq!(hash_of(&mut p), hash_of(&mut fresh));
+
+    // Take over at targets[0] with a branch recording; drive the tool elsewhere.
+    p.seek_step(targets[0]).expect("seek");
+    let branch_path = temp(&format!("{name}-branch"));
+    let (mut live, _) = p.take_over(Some((&branch_path, &format!("{backend:?}"), ""))).expect("take over");
+    live.apply(&Command::MoveObject { object: 1, target: [0.003, 0.0045, 0.0047], speed: 0.05 }).expect("move");
+    live.sim.advance(12, f64::INFINITY).expect("advance");
+    live.checkpoint().expect("hash");
+    live.sim.advance(6, f64::INFINITY).expect("advance");
+    live.checkpoint().expect("hash");
+    let live_hash = live.sim.read_state().expect("state").hash();
+    live.recorder.take().expect("branch").finish().expect("finish");
+    let branch = read_recording_file(&branch_path).expect("branch readable");
+    let parent = branch.header.parent.as_ref().expect("branch names its parent");
+    assert_eq!(parent.step, targets[0]);
+    assert_eq!(parent.hash_of_parent_header, rec.header.header_hash());
+    assert_eq!(branch.header.scenario_hash, rec.header.scenario_hash);
+    assert_eq!(branch.chunks.first().map(|c| c.kind), Some(ChunkKind::Keyframe));
+    let out = replay(&branch, backend, true).expect("branch replays");
+    assert!(out.hashes_checked >= 3 && out.mismatches.is_empty(), "{out:?}");
+    assert_eq!(out.final_hash, live_hash, "branch replay ≠ the live branch");
+    eprintln!(
+        "{backend:?}: {bytes} bytes with 3 keyframes, {} steps; branch {} bytes",
+        end,
+        std::fs::metadata(&branch_path).map(|m| m.len()).unwrap_or(0)
+    );
+
+    // A branch whose first keyframe is damaged fails with a clear error naming the parent.
+    let mut damaged = branch.clone();
+    if let Some(c) = damaged.chunks.first_mut() {
+        c.payload.truncate(c.payload.len() / 2);
+    }
+    let err = replay(&damaged, backend, false).expect_err("damaged branch start");
+    assert!(err.to_string().contains("branch") && err.to_string().contains(&parent.file), "{err}");
+    let _ = std::fs::remove_file(&path);
+    let _ = std::fs::remove_file(&branch_path);
+}
+
+#[test]
+fn seek_and_take_over_are_bit_identical_on_the_cpu() {
+    seek_and_take_over(BackendKind::Cpu, "seek-cpu.pfr");
+}
+
+#[test]
+fn seek_and_take_over_are_bit_identical_on_the_gpu() {
+    gpu_test("seek_and_take_over_are_bit_identical_on_the_gpu", |_ctx| {
+        seek_and_take_over(BackendKind::Gpu, "seek-gpu.pfr");
+    });
+}
+
+/// A keyframe restores only into a simulation of the same back-end kind and scenario: otherwise a
+/// clear error, and the simulation is left as it was.
+#[test]
+fn a_keyframe_that_does_not_fit_is_refused() {
+    let sc = perfused_block();
+    let mut a = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    a.advance(3, f64::INFINITY).expect("advance");
+    let snap = a.snapshot().expect("snapshot");
+    let bytes = snap.encode();
+    assert!(perfuse::sim::snapshot::Snapshot::decode(&bytes[..bytes.len() / 2]).is_err());
+    let mut other = Simulation::new(&relaxed_block_other_size(), BackendKind::Cpu).expect("sim");
+    let before = other.read_state().expect("state").hash();
+    let err = other.restore(snap.clone()).expect_err("another scenario");
+    assert!(err.to_string().contains("does not fit"), "{err}");
+    assert_eq!(other.read_state().expect("state").hash(), before);
+    let mut fresh = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    fresh.restore(snap).expect("same scenario");
+    assert_eq!(fresh.read_state().expect("state").hash(), a.read_state().expect("state").hash());
+}
+
+fn relaxed_block_other_size() -> perfuse::scenario::Scenario {
+    let text = common::scenes::PERFUSED_BLOCK_3D.replace("max: (0.005, 0.005, 0.004)", "max: (0.005, 0.005, 0.0035)");
+    perfuse::scenario::Scenario::from_str_named(&text, "smaller_block.ron").expect("valid")
 }

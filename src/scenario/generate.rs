@@ -22,7 +22,7 @@ pub struct PhaseParticles {
 }
 
 /// One rigid boundary object.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct BoundaryObject {
     pub name: String,
     pub shape: Region,

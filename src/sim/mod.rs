@@ -12,6 +12,7 @@ pub mod gpu;
 pub mod kernels;
 pub mod params;
 pub mod physiology;
+pub mod snapshot;
 pub mod state;
 
 use crate::scenario::{Motion, Scenario, ScenarioError, V3};
@@ -186,6 +187,8 @@ pub enum SimError {
     Scenario(#[from] ScenarioError),
     #[error("GPU back-end: {0}")]
     Gpu(String),
+    #[error(transparent)]
+    Snapshot(#[from] snapshot::SnapshotError),
     #[error("out of resources: {0}")]
     Resources(String),
 }
@@ -198,7 +201,7 @@ pub enum BackendKind {
 }
 
 /// Running statistics of a simulation (for `summary.json`).
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize)]
 pub struct RunStats {
     pub steps: u64,
     pub dt_min: f64,
@@ -549,6 +552,40 @@ impl Simulation {
             Engine::Cpu(_) => format!("cpu (rayon, {} threads)", rayon::current_num_threads()),
             Engine::Gpu(g) => format!("gpu ({}, {:?})", g.ctx.info.name, g.ctx.info.backend),
         }
+    }
+
+    /// A keyframe of everything that evolves (a readback on the GPU): see [`snapshot`].
+    pub fn snapshot(&mut self) -> Result<snapshot::Snapshot, SimError> {
+        let data = match &self.engine {
+            Engine::Cpu(c) => snapshot::EngineSnapshot::Cpu(Box::new(c.snapshot())),
+            Engine::Gpu(g) => snapshot::EngineSnapshot::Gpu(Box::new(g.snapshot()?)),
+        };
+        Ok(snapshot::Snapshot {
+            layout: snapshot::SNAPSHOT_LAYOUT,
+            engine: self.backend_name(),
+            t: self.time(),
+            steps: self.stats.steps,
+            stats: self.stats.clone(),
+            data,
+        })
+    }
+
+    /// Restores a keyframe taken from a simulation of the same scenario on the same back-end kind;
+    /// stepping on then gives the states the original run gave (bit for bit on the same adapter). On
+    /// error the simulation is unchanged, except after a GPU failure mid-restore.
+    pub fn restore(&mut self, snap: snapshot::Snapshot) -> Result<(), SimError> {
+        use snapshot::{EngineSnapshot, SnapshotError};
+        let stats = snap.stats;
+        match (&mut self.engine, snap.data) {
+            (Engine::Cpu(c), EngineSnapshot::Cpu(s)) => c.restore(*s)?,
+            (Engine::Gpu(g), EngineSnapshot::Gpu(s)) => g.restore_snapshot(*s)?,
+            (engine, data) => {
+                let want = if matches!(engine, Engine::Cpu(_)) { "CPU" } else { "GPU" };
+                return Err(SnapshotError::Backend { found: data.kind(), want }.into());
+            }
+        }
+        self.stats = stats;
+        Ok(())
     }
 
     pub fn read_state(&mut self) -> Result<State, SimError> {

@@ -22,6 +22,7 @@ pub const INFLOW_SAMPLE_S: f64 = 1e-3;
 /// How far ahead of the organ the model runs when a new table is made [s].
 pub const INFLOW_HORIZON_S: f64 = 0.25;
 
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Patient {
     pub model: CardioModel,
     volume_scale: f64,

@@ -32,7 +32,7 @@ pub const BLOCK_FACTOR: f32 = 0.9;
 pub const FLOW_MAX: usize = crate::scenario::FLOW_TABLE_MAX;
 
 /// Q(t): piecewise linear through (times, rates), held outside, repeating with `period` (> 0).
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FlowTable {
     pub times: Vec<f32>,
     pub rates: Vec<f32>,
@@ -85,7 +85,7 @@ impl FlowTable {
 }
 
 /// One inlet at run time.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Emitter {
     pub name: String,
     /// Buffer region (simulation coordinates).
@@ -111,7 +111,7 @@ pub struct Emitter {
 }
 
 /// Emitters, sinks and their totals (part of the evolving state: restored with it on divergence).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct EmitState {
     pub emitters: Vec<Emitter>,
     pub sinks: Vec<ObjectGeom>,

@@ -52,7 +52,7 @@ pub fn friction_coefficient(kbar: f32, ns_i: f32, ns_j: f32) -> f32 {
 /// Surface of a boundary object at its current pose, in simulation coordinates (mirrored by
 /// `ObjectGeom` in `shaders/common.wgsl`). `kind`: 0 box [a, b], 1 sphere (centre a, radius b.x),
 /// 2 none (no extrapolation).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ObjectGeom {
     pub kind: u32,
     pub a: Vec3,

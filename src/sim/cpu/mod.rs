@@ -26,7 +26,7 @@ use grid::{CellList, Neighbours};
 pub const MIN_PAR_LEN: usize = 256;
 
 /// Liquid particle set (structure of arrays).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct LiquidSet {
     pub id: Vec<u32>,
     pub x: Vec<Vec3>,
@@ -47,7 +47,7 @@ pub struct LiquidSet {
 }
 
 /// Solid particle set (structure of arrays).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct SolidSet {
     pub id: Vec<u32>,
     pub x: Vec<Vec3>,
@@ -87,7 +87,7 @@ pub struct SolidSet {
 }
 
 /// Virtual boundary particles.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct BoundarySet {
     pub x0: Vec<Vec3>,
     pub x: Vec<Vec3>,
@@ -128,7 +128,7 @@ impl PassTimers {
 }
 
 /// Everything that evolves (restored on divergence).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct CpuState {
     pub t: f64,
     pub steps: u64,
@@ -141,6 +141,13 @@ pub struct CpuState {
     pub damping_solid_gravity_only: bool,
     /// Emitters and sinks with their volume accounts (`emit`).
     pub emit: emit::EmitState,
+}
+
+/// A keyframe of the CPU twin ([`CpuSolver::snapshot`]).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct CpuSnapshot {
+    pub st: CpuState,
+    pub shapes: Vec<forces::ObjectGeom>,
 }
 
 pub struct CpuSolver {
@@ -255,6 +262,50 @@ impl CpuSolver {
         fracture::fracture_build_bonds(&solver.params, &mut solver.st.solid, &solver.grids.solid);
         solver.last_good = solver.st.clone();
         Ok(solver)
+    }
+
+    /// Everything that evolves (keyframes, issue 8): the state and the objects' shapes at rest (moved
+    /// by `PlaceObject` and re-anchored motions). Grids, geometries at the current pose and object
+    /// velocities are derived from them on restore.
+    pub fn snapshot(&self) -> CpuSnapshot {
+        CpuSnapshot { st: self.st.clone(), shapes: self.shapes.clone() }
+    }
+
+    /// Restores a [`CpuSolver::snapshot`] of a solver of the same scenario: afterwards stepping
+    /// continues bit for bit as from the state it was taken at.
+    pub fn restore(&mut self, snap: CpuSnapshot) -> Result<(), SimError> {
+        use crate::sim::snapshot::{SnapshotError, check_eq};
+        let (s, now) = (&snap.st, &self.st);
+        check_eq("solid particles", s.solid.x.len(), now.solid.x.len())?;
+        check_eq("bond capacity", s.solid.bond_capacity, now.solid.bond_capacity)?;
+        check_eq("boundary particles", s.boundary.x.len(), now.boundary.x.len())?;
+        check_eq("boundary objects", s.objects.len(), now.objects.len())?;
+        check_eq("object shapes", snap.shapes.len(), self.shapes.len())?;
+        check_eq("emitters", s.emit.emitters.len(), now.emit.emitters.len())?;
+        let cap = now.emit.capacity.max(now.liquid.x.len());
+        if s.liquid.x.len() > cap {
+            return Err(SnapshotError::Mismatch(format!(
+                "{} liquid particles in the keyframe, room for {cap}",
+                s.liquid.x.len()
+            ))
+            .into());
+        }
+        let consistent = |n: usize, lens: &[usize]| lens.iter().all(|&l| l == n);
+        let (l, so) = (&s.liquid, &s.solid);
+        let nl = l.x.len();
+        let ns = so.x.len();
+        if !consistent(nl, &[l.id.len(), l.v.len(), l.m.len(), l.rho.len(), l.n_l.len(), l.n_s.len(), l.p.len()])
+            || !consistent(ns, &[so.v.len(), so.m.len(), so.x_ref.len(), so.def_grad.len(), so.bond_count.len()])
+            || so.bonds.len() != ns * so.bond_capacity
+        {
+            return Err(SnapshotError::Mismatch("per-particle arrays of unequal length".into()).into());
+        }
+        self.st = snap.st;
+        self.shapes = snap.shapes;
+        self.move_boundaries(self.st.t);
+        self.build_grids();
+        self.last_good.clone_from(&self.st);
+        Ok(())
     }
 
     /// Places boundary particles and kinematic solid particles at their prescribed state at time t.

@@ -109,6 +109,33 @@ pub struct GpuSolver {
     emit_count: usize,
 }
 
+/// A keyframe of the GPU back-end ([`GpuSolver::snapshot`]): the state buffers byte for byte (plus
+/// the emitters' flow tables, which only the device holds) and the host's mirror of the clock, counts,
+/// objects and command-set values.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct GpuSnapshot {
+    clock: [f32; 2],
+    t: f64,
+    steps: u64,
+    liquid_count: u32,
+    objects: Vec<BoundaryObject>,
+    shapes: Vec<ObjectGeom>,
+    boundary_x0: Vec<Vec3>,
+    gravity: Vec3,
+    damping: f32,
+    damping_solid_gravity_only: bool,
+    emitted: u64,
+    sunk: u64,
+    capacity_hit: bool,
+    /// (slot name, contents) of every slot of [`SNAPSHOT_SLOTS`] this solver has.
+    buffers: Vec<(String, Vec<u8>)>,
+}
+
+/// What a keyframe holds on the device: the evolving state and the flow tables set by commands.
+fn snapshot_slots() -> impl Iterator<Item = Slot> {
+    buffers::STATE_SLOTS.iter().copied().chain([Slot::EmitFlow])
+}
+
 /// One element of a batched step.
 #[derive(Clone, Copy)]
 enum Item {
@@ -826,6 +853,82 @@ impl GpuSolver {
             }
         }
         self.run_stages(passes::PLACE_AND_BIN)
+    }
+
+    /// Reads everything that evolves back (blocking): see [`GpuSnapshot`].
+    pub fn snapshot(&self) -> Result<GpuSnapshot, SimError> {
+        let mut out = Vec::new();
+        for slot in snapshot_slots() {
+            if let Some(b) = self.buffers.get(slot, None) {
+                let bytes: Vec<u8> =
+                    buffers::read_buffer(&self.ctx.device, &self.ctx.queue, b, b.size() as usize, slot.name())?;
+                out.push((slot.name().to_string(), bytes));
+            }
+        }
+        Ok(GpuSnapshot {
+            clock: self.clock,
+            t: self.t,
+            steps: self.steps,
+            liquid_count: self.counts.liquid,
+            objects: self.objects.clone(),
+            shapes: self.shapes.clone(),
+            boundary_x0: self.boundary_x0.clone(),
+            gravity: self.gravity,
+            damping: self.damping,
+            damping_solid_gravity_only: self.damping_solid_gravity_only,
+            emitted: self.emitted,
+            sunk: self.sunk,
+            capacity_hit: self.capacity_hit,
+            buffers: out,
+        })
+    }
+
+    /// Restores a [`GpuSolver::snapshot`] of a solver of the same scenario: the buffers are written
+    /// back, the host mirror replaced and the boundaries and grids re-placed, as after a divergence.
+    pub fn restore_snapshot(&mut self, snap: GpuSnapshot) -> Result<(), SimError> {
+        use crate::sim::snapshot::{SnapshotError, check_eq};
+        check_eq("boundary particles", snap.boundary_x0.len(), self.boundary_x0.len())?;
+        check_eq("boundary objects", snap.objects.len(), self.objects.len())?;
+        check_eq("object shapes", snap.shapes.len(), self.shapes.len())?;
+        if snap.liquid_count > self.capacity.max(self.counts.liquid) {
+            return Err(SnapshotError::Mismatch(format!(
+                "{} liquid particles in the keyframe, room for {}",
+                snap.liquid_count,
+                self.capacity.max(self.counts.liquid)
+            ))
+            .into());
+        }
+        let want: Vec<(&'static str, u64)> =
+            snapshot_slots().filter_map(|s| self.buffers.get(s, None).map(|b| (s.name(), b.size()))).collect();
+        let have: Vec<(&str, u64)> = snap.buffers.iter().map(|(n, b)| (n.as_str(), b.len() as u64)).collect();
+        check_eq("device buffers (name, bytes)", have, want.clone())?;
+        for (slot, (_, bytes)) in snapshot_slots().filter(|s| self.buffers.get(*s, None).is_some()).zip(&snap.buffers) {
+            self.ctx.queue.write_buffer(self.buffer(slot)?, 0, bytes);
+        }
+        self.t = snap.t;
+        self.steps = snap.steps;
+        self.counts.liquid = snap.liquid_count;
+        self.objects = snap.objects;
+        self.shapes = snap.shapes;
+        self.boundary_x0 = snap.boundary_x0;
+        self.gravity = snap.gravity;
+        self.damping = snap.damping;
+        self.damping_solid_gravity_only = snap.damping_solid_gravity_only;
+        (self.emitted, self.sunk, self.capacity_hit) = (snap.emitted, snap.sunk, snap.capacity_hit);
+        self.upload_clock(snap.clock)?;
+        self.upload_params()?;
+        let gs = GridSet { n: self.counts.liquid, cells: self.cells, _pad0: 0, _pad1: 0 };
+        if let Some(b) = self.buffers.get(Slot::GridSet, Some(GridOf::Liquid)) {
+            self.ctx.queue.write_buffer(b, 0, bytemuck::bytes_of(&gs));
+        }
+        let p0: Vec<[f32; 4]> =
+            self.boundary_x0.iter().zip(&self.boundary_object).map(|(x, o)| v4(*x, f32::from_bits(*o))).collect();
+        if !p0.is_empty() {
+            self.ctx.queue.write_buffer(self.buffer(Slot::BoundaryPos0)?, 0, bytemuck::cast_slice(&p0));
+        }
+        self.upload_motions()?;
+        self.run_stages(passes::PLACE_AND_BIN)?;
+        Ok(())
     }
 
     /// Same as `CpuSolver::set_object_motion`: re-anchor, upload x⁰, the object and motion tables, and
