@@ -148,15 +148,35 @@ enum Cmd {
         #[arg(long, default_value = "out/dmd")]
         out: PathBuf,
     },
-    /// Replay a recorded session headless; --verify compares the state hashes stored in it.
+    /// Replay a recorded session in the viewer (timeline, seek, take over), or headless with
+    /// --headless / --verify (--verify compares the state hashes stored in it).
     Replay {
-        /// Recording (.pfr) written by the viewer's --record or a scripted session.
+        /// Recording (.pfrec) written by the viewer (--record, the record button) or a scripted session.
         file: PathBuf,
-        /// Re-simulate and compare every stored state hash (bit-identical on the same adapter).
+        /// Re-simulate headless and compare every stored state hash (bit-identical on the same adapter).
         #[arg(long)]
         verify: bool,
-        #[arg(long, value_enum, default_value = "cpu")]
-        backend: Backend,
+        /// Replay headless without the viewer (prints the final state hash).
+        #[arg(long)]
+        headless: bool,
+        /// Headless: stop at this simulated time [s], going there through the nearest keyframe.
+        #[arg(long)]
+        seek: Option<f64>,
+        /// Back-end (default: the one that recorded it; bit-identical only there).
+        #[arg(long, value_enum)]
+        backend: Option<Backend>,
+        /// Viewer: quit after this many frames.
+        #[arg(long)]
+        frames: Option<u64>,
+        /// Viewer: save the last frame to this PNG.
+        #[arg(long)]
+        screenshot: Option<PathBuf>,
+        /// Viewer: window size, WIDTHxHEIGHT.
+        #[arg(long, default_value = "1280x800")]
+        size: String,
+        /// Viewer: start paused.
+        #[arg(long)]
+        paused: bool,
     },
     /// Scripted hemorrhage through the closed-loop cardiovascular model: vitals.csv and PNG plots.
     Vitals {
@@ -288,6 +308,7 @@ fn viewer(cli: &Cli) -> Result<()> {
         size: parse_size(&cli.size)?,
         paused: cli.paused,
         record: cli.record.clone(),
+        replay: None,
     };
     let report = perfuse::app::run(opts)?;
     println!(
@@ -339,27 +360,77 @@ fn real_main() -> Result<()> {
             );
             Ok(())
         }
-        Cmd::Replay { file, verify, backend } => {
+        Cmd::Replay { file, verify, headless, seek, backend, frames, screenshot, size, paused } => {
             use perfuse::replay::{format::read_recording_file, session};
             let rec = read_recording_file(&file)?;
             for w in &rec.warnings {
                 eprintln!("warning: {w}");
             }
+            let backend = match backend {
+                Some(b) => BackendKind::from(b),
+                None if rec.header.backend.to_ascii_lowercase().starts_with("gpu") => BackendKind::Gpu,
+                None => BackendKind::Cpu,
+            };
             println!(
-                "{}: scenario `{}`, recorded by {} on {} {}, {} chunks{}",
+                "{}: scenario `{}`, recorded by {} on {} {}, {} chunks ({} keyframes){}{}",
                 file.display(),
                 rec.header.scenario_name,
                 rec.header.program_version,
                 rec.header.backend,
                 rec.header.adapter,
                 rec.chunks.len(),
+                rec.chunks_of(perfuse::replay::format::ChunkKind::Keyframe).count(),
+                rec.header
+                    .parent
+                    .as_ref()
+                    .map(|p| format!(", a branch of {} at t = {:.6} s (step {})", p.file, p.t_s, p.step))
+                    .unwrap_or_default(),
                 if rec.complete { "" } else { " (incomplete: replaying up to the last good chunk)" }
             );
-            let out = session::replay(&rec, backend.into(), verify)?;
+            if let Some(t) = seek
+                && !t.is_finite()
+            {
+                bail!("--seek {t}: give a finite time in seconds");
+            }
+            if !(verify || headless || seek.is_some()) {
+                if frames == Some(0) {
+                    bail!("--frames must be at least 1");
+                }
+                let scenario = session::recorded_scenario(&rec)?;
+                let opts = perfuse::app::ViewerOptions {
+                    scenario,
+                    scenario_path: file.clone(),
+                    gpu_simulation: Some(backend == BackendKind::Gpu),
+                    frames,
+                    screenshot,
+                    size: parse_size(&size)?,
+                    paused,
+                    record: None,
+                    replay: Some(rec),
+                };
+                let report = perfuse::app::run(opts)?;
+                println!("viewer: {} frames; simulation {} steps", report.frames, report.sim_steps);
+                if let Some(p) = &report.screenshot {
+                    if !p.exists() {
+                        bail!("the screenshot {} was not written", p.display());
+                    }
+                    println!("screenshot: {}", p.display());
+                }
+                return Ok(());
+            }
+            let mut player = session::Player::new(rec, backend, verify)?;
+            match seek {
+                Some(t) => player.seek_time(t)?,
+                None => player.play_to_end()?,
+            }
+            let out = player.finish()?;
             println!(
-                "replayed {} commands to step {} (t = {:.6} s); final state hash {:016x}",
-                out.commands, out.steps, out.t, out.final_hash
+                "replayed {} commands to step {} (t = {:.6} s, {} keyframes restored); final state hash {:016x}",
+                out.commands, out.steps, out.t, out.keyframes_restored, out.final_hash
             );
+            for w in out.warnings.iter().filter(|w| w.starts_with("keyframe")) {
+                eprintln!("warning: {w}");
+            }
             if verify {
                 println!("{} state hashes checked, {} mismatches", out.hashes_checked, out.mismatches.len());
                 if let Some((step, want, got)) = out.mismatches.first() {

@@ -69,3 +69,85 @@ fn simulation_thread_publishes_obeys_and_pauses_on_divergence() {
         handle.join().expect("thread ends");
     });
 }
+
+/// The viewer's replay mode (issue 8 §2) and live recording (§1) without a window: record a live
+/// session with the record control (it starts with a keyframe), replay it in the thread to its end
+/// (pausing there), seek back, take over with a branch recording, drive the tool live, and check
+/// that the branch names its parent, starts from a keyframe and replays bit-identically to the live
+/// branch's final state.
+#[test]
+fn replay_mode_seeks_and_takes_over_with_a_branch() {
+    use perfuse::app::sim_thread::{Start, spawn_with};
+    use perfuse::replay::format::{ChunkKind, read_recording_file};
+    use perfuse::replay::session::replay;
+    use perfuse::sim::BackendKind;
+    gpu_test("replay_mode_seeks_and_takes_over_with_a_branch", |ctx| {
+        let dir = std::env::temp_dir().join(format!("perfuse-simthread-{}", std::process::id()));
+        let (parent, branch) = (dir.join("live.pfrec"), dir.join("branch.pfrec"));
+        let sc = common::scenes::perfused_block();
+
+        // Live: a few steps, then record from the middle of the session.
+        let (tx, rx) = std::sync::mpsc::channel();
+        let shared = Arc::new(Shared::default());
+        let start = Start { use_gpu: false, scenario: sc.clone(), paused: true, record: None, replay: None };
+        let handle = spawn_with(ctx.clone(), start, rx, shared.clone()).expect("thread");
+        wait_for(&shared, "first publish", |s| s.publishes >= 1);
+        for _ in 0..3 {
+            tx.send(Control::Step).expect("send");
+        }
+        wait_for(&shared, "three steps", |s| s.steps == 3);
+        tx.send(Control::Record(Some(parent.clone()))).expect("send");
+        wait_for(&shared, "recording", |s| s.recording.is_some());
+        tx.send(Control::Sim(Command::PlaceObject { object: 1, position: [0.0035, 0.003, 0.0052] })).expect("send");
+        for _ in 0..20 {
+            tx.send(Control::Step).expect("send");
+        }
+        wait_for(&shared, "23 steps", |s| s.steps == 23);
+        tx.send(Control::Record(None)).expect("send");
+        wait_for(&shared, "recording finished", |s| s.recording.is_none());
+        tx.send(Control::Quit).expect("send");
+        handle.join().expect("thread ends");
+        let rec = read_recording_file(&parent).expect("recording");
+        assert!(rec.is_clean(), "{:?}", rec.warnings);
+        assert_eq!(rec.chunks.first().map(|c| (c.kind, c.step)), Some((ChunkKind::Keyframe, 3)));
+        let end_t = rec.last_t_s();
+
+        // Replay it in the thread: plays to the end and pauses there.
+        let (tx, rx) = std::sync::mpsc::channel();
+        let shared = Arc::new(Shared::default());
+        let start = Start { use_gpu: false, scenario: sc, paused: false, record: None, replay: Some(rec.clone()) };
+        let handle = spawn_with(ctx, start, rx, shared.clone()).expect("thread");
+        let st = wait_for(&shared, "end of the replay", |s| s.replay.as_ref().is_some_and(|r| r.at_end) && s.paused);
+        assert_eq!(st.steps, 23, "{st:?}");
+        // A tool command is refused while replaying.
+        tx.send(Control::Sim(Command::SetGravity([0.0; 3]))).expect("send");
+        wait_for(&shared, "refusal", |s| s.error.as_deref().is_some_and(|e| e.contains("take over")));
+        // The timeline seeks by step (exact), the API also by time.
+        tx.send(Control::SeekStep(17)).expect("send");
+        wait_for(&shared, "seek to step 17", |s| s.steps == 17);
+        // Seek back to the middle, then take over with a branch and drive the tool.
+        tx.send(Control::Seek(0.5 * end_t)).expect("send");
+        let st = wait_for(&shared, "seek", |s| s.steps < 17 && s.steps >= 3);
+        let taken_at = st.steps;
+        tx.send(Control::TakeOver(Some(branch.clone()))).expect("send");
+        wait_for(&shared, "live", |s| s.replay.is_none() && s.recording.is_some());
+        tx.send(Control::Sim(Command::MoveObject { object: 1, target: [0.003, 0.0045, 0.0047], speed: 0.05 }))
+            .expect("send");
+        for _ in 0..8 {
+            tx.send(Control::Step).expect("send");
+        }
+        wait_for(&shared, "live steps", |s| s.steps == taken_at + 8);
+        tx.send(Control::Quit).expect("send");
+        handle.join().expect("thread ends");
+
+        let b = read_recording_file(&branch).expect("branch");
+        assert!(b.is_clean(), "{:?}", b.warnings);
+        let p = b.header.parent.as_ref().expect("names its parent");
+        assert_eq!((p.step, p.hash_of_parent_header), (taken_at, rec.header.header_hash()));
+        assert_eq!(b.chunks.first().map(|c| c.kind), Some(ChunkKind::Keyframe));
+        let out = replay(&b, BackendKind::Cpu, true).expect("branch replays");
+        assert!(out.hashes_checked >= 2 && out.mismatches.is_empty(), "{out:?}");
+        assert_eq!(out.steps, taken_at + 8);
+        let _ = std::fs::remove_dir_all(&dir);
+    });
+}

@@ -39,6 +39,9 @@ pub struct ViewerOptions {
     pub paused: bool,
     /// Record the session (the first scenario run) to this file (`perfuse replay FILE --verify`).
     pub record: Option<PathBuf>,
+    /// Replay this recording (with its timeline) instead of running `scenario` live; `scenario`
+    /// should be the recording's own.
+    pub replay: Option<crate::replay::format::Recording>,
 }
 
 /// Why the viewer could not run.
@@ -171,15 +174,14 @@ impl App {
         let shared = Arc::new(Shared::default());
         // The simulation runs on the GPU when it is a hardware one (or when asked), else on the CPU.
         let gpu_sim = self.opts.gpu_simulation.unwrap_or(ctx.info.device_type != wgpu::DeviceType::Cpu);
-        let sim_thread = sim_thread::spawn(
-            ctx.clone(),
-            gpu_sim,
-            self.opts.scenario.clone(),
-            self.opts.paused,
-            self.opts.record.clone(),
-            rx,
-            shared.clone(),
-        )
+        let start = sim_thread::Start {
+            use_gpu: gpu_sim,
+            scenario: self.opts.scenario.clone(),
+            paused: self.opts.paused,
+            record: self.opts.record.clone(),
+            replay: self.opts.replay.clone(),
+        };
+        let sim_thread = sim_thread::spawn_with(ctx.clone(), start, rx, shared.clone())
         .map_err(|e| AppError::Gpu(format!("could not start the simulation thread: {e}")))?;
         let mut ui_state = ui::UiState {
             scenarios: ui::shipped_scenarios(),
@@ -189,6 +191,7 @@ impl App {
             tools_available: Vec::new(),
             selected_tool: None,
             last_screenshot: None,
+            scrub: None,
         };
         ui_state.tools_available = tools_of(&self.opts.scenario);
         let stats = ui::FrameStats {
@@ -230,6 +233,11 @@ impl App {
             material_top: None,
         })
     }
+}
+
+/// Seconds since the Unix epoch (file names of recordings and screenshots).
+fn unix_stamp() -> u64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0)
 }
 
 /// The tool kinds a scenario offers, in palette order.
@@ -452,6 +460,11 @@ impl Gfx {
                 "s" => self.act(ui::UiAction::Step),
                 "r" => self.act(ui::UiAction::Reset),
                 "h" => self.ui.show_help = !self.ui.show_help,
+                "v" => {
+                    let on = lock(&self.shared.status).recording.is_none();
+                    self.act(ui::UiAction::Record(on));
+                }
+                "t" => self.act(ui::UiAction::TakeOver { branch: false }),
                 "p" => self.act(ui::UiAction::Screenshot),
                 "c" => self.act(ui::UiAction::ResetCamera),
                 "b" => self.renderer.settings.fluid = !self.renderer.settings.fluid,
@@ -517,6 +530,19 @@ impl Gfx {
                 self.screenshot_next = Some(dir.join(format!("perfuse-{stamp}.png")));
             }
             ui::UiAction::ResetCamera => self.camera_fitted_for = 0,
+            ui::UiAction::Record(true) => {
+                let file = format!("{}-{}.pfrec", self.scenario.name, unix_stamp());
+                self.send(Control::Record(Some(PathBuf::from("recordings").join(file))));
+            }
+            ui::UiAction::Record(false) => self.send(Control::Record(None)),
+            ui::UiAction::Seek(n) => self.send(Control::SeekStep(n)),
+            ui::UiAction::ReplaySpeed(s) => self.send(Control::ReplaySpeed(s)),
+            ui::UiAction::TakeOver { branch } => {
+                let path = branch.then(|| {
+                    PathBuf::from("recordings").join(format!("{}-branch-{}.pfrec", self.scenario.name, unix_stamp()))
+                });
+                self.send(Control::TakeOver(path));
+            }
         }
     }
 

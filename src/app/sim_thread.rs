@@ -4,8 +4,15 @@
 //! index (DESIGN §Double buffering). It never waits for a frame; the render thread never waits for
 //! it. The viewer reaches it only through [`Control`] messages on a channel — the same
 //! [`Command`]s a recording holds, plus run control.
+//!
+//! It runs in one of two modes. Live: the user's commands drive the simulation, optionally recorded
+//! (`--record FILE` or the record button) with a keyframe at the start, at the end of the
+//! relaxation and every [`KEYFRAME_EVERY`] of stepping. Replay (`perfuse replay FILE`): a
+//! [`Player`] feeds the recorded commands, the timeline seeks through its keyframes, and take-over
+//! turns the player's simulation into a live one, optionally recording a branch.
 
-use crate::replay::session::{RecordedSimulation, Recorder};
+use crate::replay::format::Recording;
+use crate::replay::session::{Player, RecordedSimulation, Recorder, recorded_scenario};
 use crate::scenario::Scenario;
 use crate::sim::frame::{FrameBuffers, FrameInfo};
 use crate::sim::gpu::GpuContext;
@@ -24,9 +31,38 @@ pub enum Control {
     Step,
     /// Rebuild the scenario from its start (relaxation included).
     Reset,
-    /// Load another scenario.
+    /// Load another scenario (ends a replay).
     Load(Box<Scenario>),
+    /// Start recording the live session to this file (`Some`), or finish the recording (`None`).
+    Record(Option<std::path::PathBuf>),
+    /// Replay: go to simulated time t [s] (nearest keyframe before it, then stepping).
+    Seek(f64),
+    /// Replay: go to step n (the timeline seeks by step: through a relaxation the clock runs from
+    /// −duration to 0, so time alone does not place it).
+    SeekStep(u64),
+    /// Replay: playback speed as a fraction of full speed (0.05 … 1).
+    ReplaySpeed(f64),
+    /// Replay: continue live from the current state; with a file, record a branch there.
+    TakeOver(Option<std::path::PathBuf>),
     Quit,
+}
+
+/// Where a replay stands (for the timeline).
+#[derive(Clone, Debug, Default)]
+pub struct ReplayStatus {
+    pub file: String,
+    /// Step and time of the recording's end.
+    pub end_step: u64,
+    pub end_t: f64,
+    /// Steps of the keyframes (where seeking is cheap).
+    pub keyframes: Vec<u64>,
+    /// Playback speed (fraction of full speed).
+    pub speed: f64,
+    pub at_end: bool,
+    /// The recording branches off this one.
+    pub parent: Option<String>,
+    /// Container warnings (damaged or truncated file).
+    pub warnings: Vec<String>,
 }
 
 /// The two render buffer sets of one scenario (rebuilt when the particle counts change).
@@ -71,6 +107,10 @@ pub struct SimStatus {
     pub vitals: Option<crate::sim::cardio::Vitals>,
     /// (t [s], MAP [mmHg], HR [bpm], blood lost [mL]) history for the panel's plot.
     pub vitals_history: Vec<[f64; 4]>,
+    /// Set while replaying a recording.
+    pub replay: Option<ReplayStatus>,
+    /// The file being recorded and its size so far [bytes].
+    pub recording: Option<(String, u64)>,
 }
 
 /// What the two threads share.
@@ -87,26 +127,6 @@ pub fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 
 /// Wall time a batch of steps aims at: short enough for commands to act within a few frames.
 const BATCH_TARGET: Duration = Duration::from_millis(30);
-
-struct Runner {
-    ctx: GpuContext,
-    use_gpu: bool,
-    shared: Arc<Shared>,
-    scenario: Scenario,
-    sim: Option<RecordedSimulation>,
-    /// `--record FILE`: the first scenario run is recorded there (finished on reset, load or quit).
-    record: Option<std::path::PathBuf>,
-    last_checkpoint: Instant,
-    patient: Option<crate::sim::physiology::Patient>,
-    last_vitals: Instant,
-    frames: Option<Arc<FrameSet>>,
-    generation: u64,
-    front: usize,
-    paused: bool,
-    relax_end: Option<f64>,
-    batch: u32,
-    rate: RateMeter,
-}
 
 /// Steps per second and simulated seconds per wall second over the last ~second.
 #[derive(Default)]
@@ -133,71 +153,179 @@ impl RateMeter {
     }
 }
 
+/// Stepping wall time between keyframes of a live recording: a seek replays at most this much.
+pub const KEYFRAME_EVERY: Duration = Duration::from_secs(10);
+
+/// Where a replay seeks to.
+enum Target {
+    Time(f64),
+    Step(u64),
+}
+
+/// What the thread runs (one at a time, so the size difference costs nothing).
+#[allow(clippy::large_enum_variant)]
+enum Mode {
+    Live(RecordedSimulation),
+    Replay(Box<Player>),
+}
+
+struct Runner {
+    ctx: GpuContext,
+    use_gpu: bool,
+    shared: Arc<Shared>,
+    scenario: Scenario,
+    sim: Option<Mode>,
+    /// `--record FILE`: the first scenario run is recorded there (finished on reset, load or quit).
+    record: Option<std::path::PathBuf>,
+    /// `perfuse replay FILE`: replayed instead of the scenario at the first build.
+    replay: Option<Recording>,
+    replay_speed: f64,
+    last_checkpoint: Instant,
+    /// Stepping wall time since the last keyframe of the recording.
+    since_keyframe: Duration,
+    patient: Option<crate::sim::physiology::Patient>,
+    last_vitals: Instant,
+    frames: Option<Arc<FrameSet>>,
+    generation: u64,
+    front: usize,
+    paused: bool,
+    relax_end: Option<f64>,
+    batch: u32,
+    rate: RateMeter,
+}
+
 impl Runner {
+    fn simulation(&self) -> Option<&Simulation> {
+        match self.sim.as_ref()? {
+            Mode::Live(rs) => Some(&rs.sim),
+            Mode::Replay(p) => Some(p.simulation()),
+        }
+    }
+
+    fn adapter(&self) -> String {
+        if self.use_gpu { self.ctx.info.name.clone() } else { String::new() }
+    }
+
     fn build(&mut self) {
         self.finish_recording();
         self.sim = None;
         let mut status = SimStatus { scenario: self.scenario.name.clone(), paused: self.paused, ..Default::default() };
-        match Simulation::with_gpu(&self.scenario, self.use_gpu.then(|| self.ctx.clone())) {
-            Ok(sim) => {
-                status.backend = sim.backend_name();
-                let recorder = match self.record.take() {
-                    Some(path) => {
-                        let adapter = if self.use_gpu { self.ctx.info.name.clone() } else { String::new() };
-                        match Recorder::create(&path, &self.scenario, &sim.backend_name(), &adapter) {
-                            Ok(r) => {
-                                log::info!("recording to {}", path.display());
-                                Some(r)
-                            }
-                            Err(e) => {
-                                status.error = Some(format!("recording: {e}"));
-                                None
-                            }
-                        }
-                    }
-                    None => None,
-                };
-                let mut sim = RecordedSimulation { sim, recorder };
-                self.patient = match self.scenario.physiology.as_ref().map(crate::sim::physiology::Patient::new) {
-                    Some(Ok(p)) => Some(p),
-                    Some(Err(e)) => {
-                        status.error = Some(format!("physiology: {e}"));
-                        None
-                    }
-                    None => None,
-                };
-                // The scenario's damped relaxation runs live, before t = 0 (SPEC §7.5).
-                self.relax_end = None;
-                if let Some(r) = self.scenario.relaxation.clone().filter(|r| r.duration > 0.0) {
-                    let setup = sim.apply(&Command::SetTime(-r.duration)).and_then(|_| {
-                        sim.apply(&Command::SetDamping { damping: r.damping, gravity_solid_only: r.gravity_solid_only })
-                    });
-                    match setup {
-                        Ok(()) => self.relax_end = Some(0.0),
-                        Err(e) => status.error = Some(e.to_string()),
-                    }
-                }
-                let (nl, ns) = sim.sim.frame_counts();
-                (status.n_liquid, status.n_solid) = (nl, ns);
-                self.generation += 1;
-                let sets = [
-                    FrameBuffers::new(&self.ctx.device, nl, ns, "frame.a"),
-                    FrameBuffers::new(&self.ctx.device, nl, ns, "frame.b"),
-                ];
-                self.frames = Some(Arc::new(FrameSet { sets, generation: self.generation }));
-                self.front = 1;
-                self.sim = Some(sim);
-                self.batch = 1;
-            }
-            Err(e) => status.error = Some(format!("could not build `{}`: {e}", self.scenario.name)),
+        if let Some(rec) = self.replay.take() {
+            self.build_replay(rec, &mut status);
+        } else {
+            self.build_live(&mut status);
+        }
+        if let Some(sim) = self.simulation() {
+            let (nl, ns) = sim.frame_counts();
+            (status.n_liquid, status.n_solid) = (nl, ns);
+            status.backend = sim.backend_name();
+            self.generation += 1;
+            let sets = [
+                FrameBuffers::new(&self.ctx.device, nl, ns, "frame.a"),
+                FrameBuffers::new(&self.ctx.device, nl, ns, "frame.b"),
+            ];
+            self.frames = Some(Arc::new(FrameSet { sets, generation: self.generation }));
+            self.front = 1;
+            self.batch = 1;
         }
         *lock(&self.shared.status) = status;
         self.publish();
     }
 
+    fn new_patient(&self, status: &mut SimStatus) -> Option<crate::sim::physiology::Patient> {
+        match self.scenario.physiology.as_ref().map(crate::sim::physiology::Patient::new) {
+            Some(Ok(p)) => Some(p),
+            Some(Err(e)) => {
+                status.error = Some(format!("physiology: {e}"));
+                None
+            }
+            None => None,
+        }
+    }
+
+    fn build_live(&mut self, status: &mut SimStatus) {
+        let sim = match Simulation::with_gpu(&self.scenario, self.use_gpu.then(|| self.ctx.clone())) {
+            Ok(sim) => sim,
+            Err(e) => {
+                status.error = Some(format!("could not build `{}`: {e}", self.scenario.name));
+                return;
+            }
+        };
+        let recorder = match self.record.take() {
+            Some(path) => match Recorder::create(&path, &self.scenario, &sim.backend_name(), &self.adapter()) {
+                Ok(r) => {
+                    log::info!("recording to {}", path.display());
+                    status.recording = Some((path.display().to_string(), 0));
+                    Some(r)
+                }
+                Err(e) => {
+                    status.error = Some(format!("recording: {e}"));
+                    None
+                }
+            },
+            None => None,
+        };
+        let mut sim = RecordedSimulation { sim, recorder };
+        self.patient = self.new_patient(status);
+        // The scenario's damped relaxation runs live, before t = 0 (SPEC §7.5).
+        self.relax_end = None;
+        if let Some(r) = self.scenario.relaxation.clone().filter(|r| r.duration > 0.0) {
+            let setup = sim.apply(&Command::SetTime(-r.duration)).and_then(|_| {
+                sim.apply(&Command::SetDamping { damping: r.damping, gravity_solid_only: r.gravity_solid_only })
+            });
+            match setup {
+                Ok(()) => self.relax_end = Some(0.0),
+                Err(e) => status.error = Some(e.to_string()),
+            }
+        }
+        self.since_keyframe = Duration::ZERO;
+        self.sim = Some(Mode::Live(sim));
+    }
+
+    fn build_replay(&mut self, rec: Recording, status: &mut SimStatus) {
+        let file = rec.source.clone();
+        let built = recorded_scenario(&rec).and_then(|scenario| {
+            let sim = Simulation::with_gpu(&scenario, self.use_gpu.then(|| self.ctx.clone())).map_err(|e| {
+                crate::replay::session::SessionError::Sim { file: file.clone(), step: 0, source: Box::new(e) }
+            })?;
+            Ok((scenario, sim))
+        });
+        let (scenario, sim) = match built {
+            Ok(b) => b,
+            Err(e) => {
+                status.error = Some(format!("cannot replay: {e}"));
+                return;
+            }
+        };
+        let keyframes: Vec<u64> = rec.chunks_of(crate::replay::format::ChunkKind::Keyframe).map(|c| c.step).collect();
+        let parent = rec.header.parent.as_ref().map(|p| format!("{} at t = {:.4} s", p.file, p.t_s));
+        let warnings = rec.warnings.iter().map(|w| w.to_string()).collect();
+        match Player::with_simulation(rec, sim, false) {
+            Ok(player) => {
+                let (end_step, end_t) = player.end();
+                self.scenario = scenario;
+                status.scenario = self.scenario.name.clone();
+                self.patient = player.patient().cloned().or_else(|| self.new_patient(status));
+                status.replay = Some(ReplayStatus {
+                    file,
+                    end_step,
+                    end_t,
+                    keyframes,
+                    speed: self.replay_speed,
+                    at_end: false,
+                    parent,
+                    warnings,
+                });
+                self.relax_end = None;
+                self.sim = Some(Mode::Replay(Box::new(player)));
+            }
+            Err(e) => status.error = Some(format!("cannot replay: {e}")),
+        }
+    }
+
     /// Ends the recording, if one runs: a last state hash, then the End chunk.
     fn finish_recording(&mut self) {
-        if let Some(rs) = &mut self.sim
+        if let Some(Mode::Live(rs)) = &mut self.sim
             && rs.recorder.is_some()
         {
             let _ = rs.checkpoint();
@@ -208,13 +336,78 @@ impl Runner {
                 }
             }
         }
+        lock(&self.shared.status).recording = None;
+    }
+
+    /// Starts recording the live session to `path`: the header, then a keyframe of the current state
+    /// (the recording replays from it).
+    fn start_recording(&mut self, path: std::path::PathBuf) {
+        let adapter = self.adapter();
+        let Some(Mode::Live(rs)) = &mut self.sim else {
+            lock(&self.shared.status).error = Some("recording: take over the replay first".into());
+            return;
+        };
+        if rs.recorder.is_some() {
+            return;
+        }
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            let _ = std::fs::create_dir_all(dir);
+        }
+        let r = Recorder::create(&path, &self.scenario, &rs.sim.backend_name(), &adapter)
+            .map_err(|e| e.to_string())
+            .and_then(|r| {
+                rs.recorder = Some(r);
+                rs.keyframe(self.patient.as_ref()).map_err(|e| e.to_string())
+            });
+        let mut st = lock(&self.shared.status);
+        match r {
+            Ok(()) => {
+                log::info!("recording to {}", path.display());
+                st.recording = Some((path.display().to_string(), 0));
+                self.since_keyframe = Duration::ZERO;
+            }
+            Err(e) => st.error = Some(format!("recording: {e}")),
+        }
+    }
+
+    /// Replay → live from the current state, optionally recording a branch.
+    fn take_over(&mut self, branch: Option<std::path::PathBuf>) {
+        let Some(Mode::Replay(player)) = self.sim.take() else { return };
+        let backend = player.simulation().backend_name();
+        let adapter = self.adapter();
+        if let Some(dir) = branch.as_ref().and_then(|p| p.parent()).filter(|d| !d.as_os_str().is_empty()) {
+            let _ = std::fs::create_dir_all(dir);
+        }
+        let spec = branch.as_ref().map(|p| (p.as_path(), backend.as_str(), adapter.as_str()));
+        match player.take_over(spec) {
+            Ok((rs, patient)) => {
+                let t = rs.sim.time();
+                let mut st = lock(&self.shared.status);
+                if let Some(p) = patient {
+                    self.patient = Some(p);
+                }
+                // taken over during the relaxation: end it live, as a live run does
+                self.relax_end = (t < 0.0).then_some(0.0);
+                st.replay = None;
+                st.recording = branch.as_ref().map(|p| (p.display().to_string(), 0));
+                st.error = None;
+                drop(st);
+                self.since_keyframe = Duration::ZERO;
+                self.sim = Some(Mode::Live(rs));
+            }
+            Err(e) => {
+                // the player is gone with its simulation: rebuild the scenario live
+                lock(&self.shared.status).error = Some(format!("take-over failed: {e}"));
+                self.build();
+            }
+        }
     }
 
     /// Writes the back set and swaps it to the front.
     fn publish(&mut self) {
-        let (Some(rs), Some(frames)) = (&self.sim, &self.frames) else { return };
+        let (Some(sim), Some(frames)) = (self.simulation(), &self.frames) else { return };
         let back = 1 - self.front;
-        match rs.sim.publish(&frames.sets[back], &self.ctx.queue) {
+        match sim.publish(&frames.sets[back], &self.ctx.queue) {
             Ok(info) => {
                 self.front = back;
                 let mut p = lock(&self.shared.published);
@@ -242,58 +435,119 @@ impl Runner {
                     self.advance(1);
                 }
             }
-            Control::Reset => self.build(),
+            Control::Reset => {
+                if matches!(self.sim, Some(Mode::Replay(_))) {
+                    self.seek(Target::Step(0));
+                } else {
+                    self.build();
+                }
+            }
             Control::Load(s) => {
                 self.scenario = *s;
                 self.build();
             }
-            Control::Sim(cmd) => {
-                if let Some(sim) = &mut self.sim {
+            Control::Sim(cmd) => match &mut self.sim {
+                Some(Mode::Live(sim)) => {
                     let r = sim.apply(&cmd);
                     let mut st = lock(&self.shared.status);
                     st.error = r.err().map(|e| e.to_string());
                 }
+                Some(Mode::Replay(_)) => {
+                    lock(&self.shared.status).error =
+                        Some("replaying: take over (T) to drive the tools from here".into());
+                }
+                None => {}
+            },
+            Control::Record(Some(path)) => self.start_recording(path),
+            Control::Record(None) => self.finish_recording(),
+            Control::Seek(t) => self.seek(Target::Time(t)),
+            Control::SeekStep(n) => self.seek(Target::Step(n)),
+            Control::ReplaySpeed(s) => {
+                self.replay_speed = if s.is_finite() { s.clamp(0.05, 1.0) } else { 1.0 };
+                if let Some(r) = &mut lock(&self.shared.status).replay {
+                    r.speed = self.replay_speed;
+                }
             }
+            Control::TakeOver(branch) => self.take_over(branch),
         }
         true
     }
 
-    /// Takes up to `steps` steps (stopping at the end of the relaxation), updating the status.
-    fn advance(&mut self, steps: u32) {
-        let Some(rs) = &mut self.sim else { return };
-        // The patient's hepatic flow feeds the `Hepatic` inlets (after the relaxation, as headless
-        // runs do): a table renewed half a horizon before it runs out, recorded like every command.
-        if let Some(p) = self.patient.as_mut()
-            && self.relax_end.is_none()
-            && rs.sim.time() + 0.5 * crate::sim::physiology::INFLOW_HORIZON_S >= p.inflow_until()
+    /// Replay: go to a time or step.
+    fn seek(&mut self, target: Target) {
+        let Some(Mode::Replay(player)) = &mut self.sim else { return };
+        let r = match target {
+            Target::Step(n) => player.seek_step(n),
+            Target::Time(t) => player.seek_time(t),
+        };
+        let patient = player.patient().cloned();
+        let (time, steps, at_end) = (player.simulation().time(), player.steps(), player.at_end());
+        let broken = player.simulation().stats().broken_bonds;
         {
-            let t = rs.sim.time();
-            for k in rs.sim.hepatic_emitters() {
-                let cmd = p.inflow(k, t, t.max(0.0) + crate::sim::physiology::INFLOW_HORIZON_S);
-                if let Err(e) = rs.apply(&cmd) {
-                    lock(&self.shared.status).error = Some(e.to_string());
-                }
+            let mut st = lock(&self.shared.status);
+            (st.t, st.steps, st.broken_bonds) = (time, steps, broken);
+            st.error = r.err().map(|e| e.to_string());
+            st.vitals_history.clear();
+            if let Some(rs) = &mut st.replay {
+                rs.at_end = at_end;
             }
         }
-        let t0 = rs.sim.time();
-        let t_end = self.relax_end.unwrap_or(f64::INFINITY);
-        let start = Instant::now();
-        let r = rs.sim.advance(steps, t_end);
+        if patient.is_some() {
+            self.patient = patient;
+        }
+        self.publish();
+    }
+
+    /// Takes up to `steps` steps (stopping at the end of the relaxation, or of a replay), updating
+    /// the status.
+    fn advance(&mut self, steps: u32) {
+        let relax_end = self.relax_end;
+        let Some(mode) = &mut self.sim else { return };
+        let (t0, start) = (Self::sim_of(mode).time(), Instant::now());
+        let r = match mode {
+            Mode::Live(rs) => {
+                // The patient's hepatic flow feeds the `Hepatic` inlets (after the relaxation, as
+                // headless runs do): a table renewed half a horizon before it runs out, recorded like
+                // every command.
+                if let Some(p) = self.patient.as_mut()
+                    && relax_end.is_none()
+                    && rs.sim.time() + 0.5 * crate::sim::physiology::INFLOW_HORIZON_S >= p.inflow_until()
+                {
+                    let t = rs.sim.time();
+                    for k in rs.sim.hepatic_emitters() {
+                        let cmd = p.inflow(k, t, t.max(0.0) + crate::sim::physiology::INFLOW_HORIZON_S);
+                        if let Err(e) = rs.apply(&cmd) {
+                            lock(&self.shared.status).error = Some(e.to_string());
+                        }
+                    }
+                }
+                rs.sim.advance(steps, relax_end.unwrap_or(f64::INFINITY)).map(Some)
+            }
+            Mode::Replay(player) => player.step_forward(steps).map(|_| None).map_err(|e| match e {
+                crate::replay::session::SessionError::Sim { source, .. } => *source,
+                other => SimError::BadCommand(other.to_string()),
+            }),
+        };
         let wall = start.elapsed();
+        let sim = Self::sim_of(mode);
+        let (t1, n_steps) = (sim.time(), sim.stats().steps);
         let mut st = lock(&self.shared.status);
         match r {
             Ok(adv) => {
-                self.rate.add(adv.steps, adv.t - t0);
-                st.t = adv.t;
-                st.dt = adv.dt_max;
-                if let Some((i, _)) = adv.limited_by.iter().enumerate().max_by_key(|(_, n)| **n)
-                    && adv.steps > 0
-                {
-                    st.dt_limit = DtLimit::ALL[i].name().to_string();
+                let taken = adv.as_ref().map_or(n_steps.saturating_sub(st.steps), |a| a.steps);
+                self.rate.add(taken, t1 - t0);
+                st.t = t1;
+                if let Some(adv) = &adv {
+                    st.dt = adv.dt_max;
+                    if let Some((i, _)) = adv.limited_by.iter().enumerate().max_by_key(|(_, n)| **n)
+                        && adv.steps > 0
+                    {
+                        st.dt_limit = DtLimit::ALL[i].name().to_string();
+                    }
                 }
                 // Aim the next batch at BATCH_TARGET of wall time.
-                if adv.steps > 0 {
-                    let per_step = wall.as_secs_f64() / adv.steps as f64;
+                if taken > 0 {
+                    let per_step = wall.as_secs_f64() / taken as f64;
                     let want = (BATCH_TARGET.as_secs_f64() / per_step.max(1e-6)).clamp(1.0, 64.0);
                     self.batch = want as u32;
                 }
@@ -302,60 +556,131 @@ impl Runner {
                 // A diverged run keeps its last good state: pause and say so.
                 if matches!(e, SimError::Diverged { .. }) {
                     st.diverged = Some(e.to_string());
-                    self.paused = true;
-                    st.paused = true;
                 } else {
                     st.error = Some(e.to_string());
+                }
+                self.paused = true;
+                st.paused = true;
+            }
+        }
+        st.steps = n_steps;
+        st.broken_bonds = sim.stats().broken_bonds;
+        (st.n_liquid, st.n_solid) = sim.particle_counts();
+        st.steps_per_s = self.rate.steps_per_s;
+        st.real_time_factor = self.rate.rtf;
+        drop(st);
+        match mode {
+            Mode::Live(rs) => {
+                self.since_keyframe += wall;
+                Self::after_live_batch(
+                    rs,
+                    &self.shared,
+                    &mut self.relax_end,
+                    &mut self.since_keyframe,
+                    self.patient.as_ref(),
+                );
+                let mut st = lock(&self.shared.status);
+                if let (Some(r), Some(rec)) = (&rs.recorder, &mut st.recording) {
+                    rec.1 = r.bytes_written();
+                }
+            }
+            Mode::Replay(player) => {
+                let at_end = player.at_end();
+                let mut st = lock(&self.shared.status);
+                if let Some(r) = &mut st.replay {
+                    r.at_end = at_end;
+                }
+                if at_end {
                     self.paused = true;
                     st.paused = true;
                 }
+                drop(st);
+                // Slower playback: idle so that stepping takes `speed` of the wall time.
+                if self.replay_speed < 1.0 {
+                    std::thread::sleep(wall.mul_f64((1.0 / self.replay_speed - 1.0).min(20.0)));
+                }
             }
         }
-        st.steps = rs.sim.stats().steps;
-        st.broken_bonds = rs.sim.stats().broken_bonds;
-        (st.n_liquid, st.n_solid) = rs.sim.particle_counts();
-        st.steps_per_s = self.rate.steps_per_s;
-        st.real_time_factor = self.rate.rtf;
-        // End of the relaxation: undamped from t = 0.
-        if let Some(t_end) = self.relax_end
+        self.sample_patient();
+        self.checkpoint();
+        self.publish();
+    }
+
+    fn sim_of(mode: &Mode) -> &Simulation {
+        match mode {
+            Mode::Live(rs) => &rs.sim,
+            Mode::Replay(p) => p.simulation(),
+        }
+    }
+
+    /// End of the relaxation (undamped from t = 0, a keyframe) and the periodic keyframes of a
+    /// recording.
+    fn after_live_batch(
+        rs: &mut RecordedSimulation,
+        shared: &Shared,
+        relax_end: &mut Option<f64>,
+        since_keyframe: &mut Duration,
+        patient: Option<&crate::sim::physiology::Patient>,
+    ) {
+        let mut keyframe = *since_keyframe >= KEYFRAME_EVERY;
+        if let Some(t_end) = *relax_end
             && rs.sim.time() >= t_end
         {
             let r = rs
                 .apply(&Command::SetDamping { damping: 0.0, gravity_solid_only: false })
                 .and_then(|_| rs.apply(&Command::SetTime(0.0)));
             if let Err(e) = r {
-                st.error = Some(e.to_string());
+                lock(&shared.status).error = Some(e.to_string());
             }
-            self.relax_end = None;
+            *relax_end = None;
+            keyframe = true;
         }
-        st.relaxing = self.relax_end.is_some();
-        drop(st);
-        // The patient, from a readback every half second of wall time (not per step).
-        if self.patient.is_some() && self.last_vitals.elapsed() > Duration::from_millis(500) {
-            self.last_vitals = Instant::now();
-            let rho0 = self.scenario.liquid.as_ref().map_or(1000.0, |l| l.density);
-            match (rs.sim.read_state(), self.patient.as_mut()) {
-                (Ok(state), Some(p)) => {
-                    let v = p.update(&state, rho0);
-                    let mut st = lock(&self.shared.status);
-                    st.vitals = Some(v);
-                    st.vitals_history.push([state.t, v.map_mmhg, v.hr_bpm, v.blood_lost_ml]);
-                    if st.vitals_history.len() > 2000 {
-                        st.vitals_history.drain(..1000);
-                    }
+        lock(&shared.status).relaxing = relax_end.is_some();
+        if keyframe && rs.recorder.is_some() {
+            *since_keyframe = Duration::ZERO;
+            if let Err(e) = rs.keyframe(patient) {
+                lock(&shared.status).error = Some(format!("recording: {e}"));
+            }
+        }
+    }
+
+    /// The patient, from a readback every half second of wall time (not per step). In a replay it
+    /// follows the organ's loss for the vitals panel; its inflow comes from the recording.
+    fn sample_patient(&mut self) {
+        if self.patient.is_none() || self.last_vitals.elapsed() <= Duration::from_millis(500) {
+            return;
+        }
+        self.last_vitals = Instant::now();
+        let rho0 = self.scenario.liquid.as_ref().map_or(1000.0, |l| l.density);
+        let state = match &mut self.sim {
+            Some(Mode::Live(rs)) => rs.sim.read_state(),
+            Some(Mode::Replay(p)) => p.simulation_mut().read_state(),
+            None => return,
+        };
+        match (state, self.patient.as_mut()) {
+            (Ok(state), Some(p)) => {
+                let v = p.update(&state, rho0);
+                let mut st = lock(&self.shared.status);
+                st.vitals = Some(v);
+                st.vitals_history.push([state.t, v.map_mmhg, v.hr_bpm, v.blood_lost_ml]);
+                if st.vitals_history.len() > 2000 {
+                    st.vitals_history.drain(..1000);
                 }
-                (Err(e), _) => lock(&self.shared.status).error = Some(e.to_string()),
-                _ => {}
             }
+            (Err(e), _) => lock(&self.shared.status).error = Some(e.to_string()),
+            _ => {}
         }
-        // A state hash every 2 s of wall time lets `perfuse replay --verify` check the recording.
+    }
+
+    /// A state hash every 2 s of wall time lets `perfuse replay --verify` check the recording.
+    fn checkpoint(&mut self) {
+        let Some(Mode::Live(rs)) = &mut self.sim else { return };
         if rs.recorder.is_some() && self.last_checkpoint.elapsed() > Duration::from_secs(2) {
             self.last_checkpoint = Instant::now();
             if let Err(e) = rs.checkpoint() {
                 lock(&self.shared.status).error = Some(format!("recording: {e}"));
             }
         }
-        self.publish();
     }
 
     fn run(mut self, rx: Receiver<Control>) {
@@ -391,6 +716,18 @@ impl Runner {
     }
 }
 
+/// How the simulation thread starts.
+pub struct Start {
+    /// Simulate on the GPU of the context (else on the CPU, publishing through its queue).
+    pub use_gpu: bool,
+    pub scenario: Scenario,
+    pub paused: bool,
+    /// Record the first run of the scenario to this file.
+    pub record: Option<std::path::PathBuf>,
+    /// Replay this recording instead (its own scenario).
+    pub replay: Option<Recording>,
+}
+
 /// Starts the simulation thread on `scenario`; the simulation runs on the GPU of `ctx` when
 /// `use_gpu`, else on the CPU (publishing through `ctx`'s queue either way).
 pub fn spawn(
@@ -402,20 +739,33 @@ pub fn spawn(
     rx: Receiver<Control>,
     shared: Arc<Shared>,
 ) -> std::io::Result<std::thread::JoinHandle<()>> {
+    spawn_with(ctx, Start { use_gpu, scenario, paused, record, replay: None }, rx, shared)
+}
+
+/// Starts the simulation thread as `start` says.
+pub fn spawn_with(
+    ctx: GpuContext,
+    start: Start,
+    rx: Receiver<Control>,
+    shared: Arc<Shared>,
+) -> std::io::Result<std::thread::JoinHandle<()>> {
     let runner = Runner {
         ctx,
-        use_gpu,
+        use_gpu: start.use_gpu,
         shared,
-        scenario,
+        scenario: start.scenario,
         sim: None,
-        record,
+        record: start.record,
+        replay: start.replay,
+        replay_speed: 1.0,
         last_checkpoint: Instant::now(),
+        since_keyframe: Duration::ZERO,
         patient: None,
         last_vitals: Instant::now(),
         frames: None,
         generation: 0,
         front: 1,
-        paused,
+        paused: start.paused,
         relax_end: None,
         batch: 1,
         rate: RateMeter::default(),

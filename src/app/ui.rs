@@ -1,5 +1,6 @@
-//! The egui panels of the viewer: scenario picker, run control, tools, view settings, live
-//! parameters, statistics, screenshot, keyboard help and the divergence banner. Panels only read
+//! The egui panels of the viewer: scenario picker, run control, recording, tools, view settings,
+//! live parameters, statistics, screenshot, keyboard help, the divergence banner and, in a replay,
+//! the timeline (play/pause, speed, seek, take over). Panels only read
 //! state and return [`UiAction`]s; `app` turns them into commands (data flows one way).
 
 use super::sim_thread::SimStatus;
@@ -18,6 +19,14 @@ pub enum UiAction {
     Gravity(bool),
     Screenshot,
     ResetCamera,
+    /// Start (true) or finish (false) recording the live session.
+    Record(bool),
+    /// Replay: go to step n.
+    Seek(u64),
+    /// Replay: playback speed (fraction of full speed).
+    ReplaySpeed(f64),
+    /// Replay: continue live from here, recording a branch when true.
+    TakeOver { branch: bool },
 }
 
 /// Render-thread statistics.
@@ -41,6 +50,8 @@ pub struct UiState {
     pub tools_available: Vec<ToolKind>,
     pub selected_tool: Option<ToolKind>,
     pub last_screenshot: Option<String>,
+    /// Timeline position (step) while the user drags it (seek on release).
+    pub scrub: Option<u64>,
 }
 
 /// Every shipped scenario (assets/scenarios/*.ron), sorted.
@@ -76,6 +87,9 @@ pub fn panels(
             );
         });
     }
+    if let Some(r) = &status.replay {
+        timeline(ui, state, status, r, &mut actions);
+    }
     egui::Panel::left("controls").resizable(true).default_size(300.0).show(ui, |ui| {
         egui::ScrollArea::vertical().show(ui, |ui| {
             ui.heading("Perfuse");
@@ -102,10 +116,29 @@ pub fn panels(
                 if ui.add_enabled(status.paused, egui::Button::new("Step")).on_hover_text("S").clicked() {
                     actions.push(UiAction::Step);
                 }
-                if ui.button("Reset").on_hover_text("R").clicked() {
+                let reset = if status.replay.is_some() { "To start" } else { "Reset" };
+                if ui.button(reset).on_hover_text("R").clicked() {
                     actions.push(UiAction::Reset);
                 }
             });
+            if status.replay.is_none() {
+                ui.horizontal(|ui| match &status.recording {
+                    Some((file, bytes)) => {
+                        if ui.button("Stop recording").on_hover_text("V").clicked() {
+                            actions.push(UiAction::Record(false));
+                        }
+                        ui.colored_label(
+                            egui::Color32::from_rgb(230, 70, 60),
+                            format!("REC {} ({:.1} MB)", file_name(std::path::Path::new(file)), *bytes as f64 / 1e6),
+                        );
+                    }
+                    None => {
+                        if ui.button("Record").on_hover_text("V: record the session to recordings/").clicked() {
+                            actions.push(UiAction::Record(true));
+                        }
+                    }
+                });
+            }
             ui.separator();
 
             ui.strong("Tool");
@@ -243,6 +276,85 @@ pub fn panels(
     actions
 }
 
+/// The replay timeline: play/pause, back to the start, speed, a seek bar with the keyframes marked,
+/// and take over (optionally recording a branch).
+fn timeline(
+    ui: &mut egui::Ui,
+    state: &mut UiState,
+    status: &SimStatus,
+    r: &super::sim_thread::ReplayStatus,
+    actions: &mut Vec<UiAction>,
+) {
+    egui::Panel::bottom("timeline").show(ui, |ui| {
+        ui.horizontal(|ui| {
+            ui.strong("Replay");
+            ui.label(file_name(std::path::Path::new(&r.file)));
+            if let Some(p) = &r.parent {
+                ui.label(format!("(branch of {p})"));
+            }
+            if !r.warnings.is_empty() {
+                ui.colored_label(egui::Color32::from_rgb(255, 170, 60), format!("{} warning(s)", r.warnings.len()))
+                    .on_hover_text(r.warnings.join("\n"));
+            }
+        });
+        ui.horizontal(|ui| {
+            let label = if status.paused { "Play" } else { "Pause" };
+            if ui.button(label).on_hover_text("Space").clicked() {
+                actions.push(UiAction::Pause(!status.paused));
+            }
+            if ui.button("|<").on_hover_text("back to the start (R)").clicked() {
+                actions.push(UiAction::Reset);
+            }
+            let mut speed = r.speed;
+            egui::ComboBox::from_id_salt("speed").selected_text(format!("{speed}×")).width(60.0).show_ui(ui, |ui| {
+                for s in [0.1, 0.25, 0.5, 1.0] {
+                    ui.selectable_value(&mut speed, s, format!("{s}×"));
+                }
+            });
+            if speed != r.speed {
+                actions.push(UiAction::ReplaySpeed(speed));
+            }
+            let end = r.end_step.max(1);
+            let mut n = state.scrub.unwrap_or(status.steps).min(end);
+            ui.spacing_mut().slider_width = (ui.available_width() - 560.0).max(120.0);
+            let resp = ui.add(egui::Slider::new(&mut n, 0..=end).text("step"));
+            // keyframe ticks under the bar: seeking near one is fast
+            let bar = resp.rect;
+            let width = ui.spacing().slider_width;
+            for k in &r.keyframes {
+                let x = bar.left() + (*k as f32 / end as f32).clamp(0.0, 1.0) * width;
+                ui.painter().line_segment(
+                    [egui::pos2(x, bar.bottom() - 3.0), egui::pos2(x, bar.bottom())],
+                    egui::Stroke::new(2.0, egui::Color32::from_rgb(90, 160, 255)),
+                );
+            }
+            if resp.dragged() {
+                state.scrub = Some(n);
+            } else if resp.drag_stopped() || (resp.changed() && state.scrub.is_none()) {
+                state.scrub = None;
+                actions.push(UiAction::Seek(n));
+            }
+            ui.label(format!(
+                "/ {} · t = {:.4} s{}{}",
+                r.end_step,
+                status.t,
+                if status.relaxing || status.t < 0.0 { " (relaxation)" } else { "" },
+                if r.at_end { " · end" } else { "" }
+            ));
+            if ui.button("Take over").on_hover_text("T: continue live from here with your own tool").clicked() {
+                actions.push(UiAction::TakeOver { branch: false });
+            }
+            if ui
+                .button("Take over + record")
+                .on_hover_text("continue live from here, recording a branch that names this recording")
+                .clicked()
+            {
+                actions.push(UiAction::TakeOver { branch: true });
+            }
+        });
+    });
+}
+
 /// A small time plot of MAP (red) and HR (green) on a 40–160 scale, and blood lost (orange, 0 to the
 /// largest loss).
 fn vitals_plot(ui: &mut egui::Ui, history: &[[f64; 4]]) {
@@ -276,7 +388,9 @@ pub const HELP: &[(&str, &str)] = &[
     ("0 1 2 3", "no tool / select tool 1–3"),
     ("Space", "run / pause"),
     ("S", "single step (paused)"),
-    ("R", "reset the scenario"),
+    ("R", "reset the scenario (replay: back to the start)"),
+    ("V", "start / stop recording the session (recordings/)"),
+    ("T", "replay: take over from here"),
     ("F", "cycle the tissue colour field"),
     ("B", "blood: fluid surface / spheres"),
     ("C", "reset the camera"),
