@@ -3,6 +3,8 @@
 //! vs N; or the same for any scenario, with its real-time factor and dt-limiting criterion — the figure
 //! that decides whether a surgeon can work interactively.
 
+use crate::replay::format::ReplayError;
+use crate::replay::session::{HASH_EVERY, KEYFRAME_EVERY, RecordedSimulation, Recorder};
 use crate::scenario::{Scenario, ScenarioError};
 use crate::sim::{BackendKind, SimError, Simulation};
 use serde::Serialize;
@@ -30,6 +32,31 @@ pub struct BenchRow {
     pub real_time_factor: f64,
     /// The criterion of (2.70) that limited Δt most often.
     pub dt_limited_by: String,
+    /// With `--record`: what recording the session cost.
+    pub recording: Option<RecordCost>,
+}
+
+/// What recording a session costs (`perfuse bench --record`): the run is recorded as the viewer
+/// records (a keyframe at the start, then one every [`KEYFRAME_EVERY`] of stepping, a state hash
+/// every [`HASH_EVERY`]) and compared with a run without recording.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RecordCost {
+    pub file_bytes: u64,
+    pub keyframes: u64,
+    /// Mean wall time of one keyframe: readback, encoding, compression, write [ms].
+    pub keyframe_ms: f64,
+    /// Mean size of one keyframe on disk [bytes].
+    pub keyframe_bytes: f64,
+    pub hashes: u64,
+    /// Mean wall time of one state hash (a readback) [ms].
+    pub hash_ms: f64,
+    /// 1 − PS/s(recorded) / PS/s(not recorded), runs of the same length [%] (noisy on short runs).
+    pub overhead_measured_pct: f64,
+    /// Steady state of the viewer's policy: keyframe_ms per KEYFRAME_EVERY plus hash_ms per
+    /// HASH_EVERY of stepping [%].
+    pub overhead_policy_pct: f64,
+    /// Recording size per simulated second with the viewer's policy at this speed [bytes/s].
+    pub bytes_per_simulated_s: f64,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -39,6 +66,8 @@ pub enum BenchError {
     Scenario(#[from] ScenarioError),
     #[error(transparent)]
     Sim(#[from] SimError),
+    #[error(transparent)]
+    Record(#[from] ReplayError),
 }
 
 /// The §7.5 tissue specimen (perfused cube, 5 cm, on a plate, gravity) with about `n` particles
@@ -78,12 +107,33 @@ pub fn measure(
     min_steps: u64,
     max_steps: u64,
 ) -> Result<BenchRow, BenchError> {
-    let mut sim = Simulation::new(sc, backend)?;
-    sim.step()?; // warm-up: first-use allocations, shader compilation
-    let before: BTreeMap<String, f64> = sim.pass_times().into_iter().collect();
-    let t_sim0 = sim.time();
-    let steps0 = sim.stats().steps;
+    measure_with(sc, backend, min_wall_s, min_steps, max_steps, None)
+}
+
+/// [`measure`], recording the run to `record` as the viewer does (see [`RecordCost`]; its
+/// `overhead_measured_pct` is filled in by [`record_overhead`]).
+pub fn measure_with(
+    sc: &Scenario,
+    backend: BackendKind,
+    min_wall_s: f64,
+    min_steps: u64,
+    max_steps: u64,
+    record: Option<&std::path::Path>,
+) -> Result<BenchRow, BenchError> {
+    let sim = Simulation::new(sc, backend)?;
+    let mut rs = RecordedSimulation { sim, recorder: None };
+    rs.sim.step()?; // warm-up: first-use allocations, shader compilation
+    let mut cost = RecordCost::default();
+    let before: BTreeMap<String, f64> = rs.sim.pass_times().into_iter().collect();
+    let t_sim0 = rs.sim.time();
+    let steps0 = rs.sim.stats().steps;
     let start = Instant::now();
+    let (mut kf_wall, mut kf_bytes, mut hash_wall) = (0.0, 0u64, 0.0);
+    let (mut last_kf, mut last_hash) = (Instant::now(), Instant::now());
+    if let Some(path) = record {
+        rs.recorder = Some(Recorder::create(path, sc, &rs.sim.backend_name(), "")?);
+        timed_keyframe(&mut rs, &mut cost, &mut kf_wall, &mut kf_bytes)?;
+    }
     let mut n = 0u64;
     while n < max_steps && (n < min_steps || start.elapsed().as_secs_f64() < min_wall_s) {
         // Chunks (one GPU batch each) sized from the time per step so far, so that the run ends near
@@ -93,9 +143,38 @@ pub fn measure(
         let by_time = ((min_wall_s - elapsed) / per_step).ceil().max(0.0) as u64;
         let chunk = by_time.max(min_steps.saturating_sub(n)).clamp(1, u64::from(crate::sim::ADVANCE_CHUNK));
         let chunk = chunk.min(max_steps - n) as u32;
-        n += sim.advance(chunk, f64::INFINITY)?.steps;
+        n += rs.sim.advance(chunk, f64::INFINITY)?.steps;
+        if rs.recorder.is_some() {
+            if last_hash.elapsed() >= HASH_EVERY {
+                let t = Instant::now();
+                rs.checkpoint()?;
+                (hash_wall, cost.hashes, last_hash) = (hash_wall + t.elapsed().as_secs_f64(), cost.hashes + 1, t);
+            }
+            if last_kf.elapsed() >= KEYFRAME_EVERY {
+                last_kf = Instant::now();
+                timed_keyframe(&mut rs, &mut cost, &mut kf_wall, &mut kf_bytes)?;
+            }
+        }
     }
     let wall = start.elapsed().as_secs_f64();
+    let sim_time = rs.sim.time() - t_sim0;
+    let recording = match rs.recorder.take() {
+        Some(r) => {
+            cost.file_bytes = r.finish()?;
+            cost.keyframe_ms = 1e3 * kf_wall / cost.keyframes.max(1) as f64;
+            cost.keyframe_bytes = kf_bytes as f64 / cost.keyframes.max(1) as f64;
+            cost.hash_ms = if cost.hashes > 0 { 1e3 * hash_wall / cost.hashes as f64 } else { 0.0 };
+            let kf_every = KEYFRAME_EVERY.as_secs_f64();
+            let hash_every = HASH_EVERY.as_secs_f64();
+            cost.overhead_policy_pct = 100.0 * (cost.keyframe_ms / 1e3 / kf_every + cost.hash_ms / 1e3 / hash_every);
+            let rtf = sim_time / wall;
+            // a state-hash chunk is 44 bytes on disk
+            cost.bytes_per_simulated_s = (cost.keyframe_bytes / kf_every + 44.0 / hash_every) / rtf.max(1e-30);
+            Some(cost)
+        }
+        None => None,
+    };
+    let mut sim = rs.sim;
     let state = sim.read_state()?;
     let particles = state.liquid.len() + state.solid.len();
     let mut pass = BTreeMap::new();
@@ -105,7 +184,6 @@ pub fn measure(
     }
     let stats = sim.stats();
     let limit = stats.dt_limited_by.iter().max_by_key(|(_, c)| **c).map(|(k, _)| k.clone()).unwrap_or_default();
-    let sim_time = sim.time() - t_sim0;
     debug_assert_eq!(stats.steps - steps0, n);
     let backend_name = sim.backend_name();
     let (backend_short, adapter) = match backend_name.split_once(' ') {
@@ -127,7 +205,72 @@ pub fn measure(
         dt_mean_s: sim_time / n.max(1) as f64,
         real_time_factor: sim_time / wall,
         dt_limited_by: limit,
+        recording,
     })
+}
+
+fn timed_keyframe(
+    rs: &mut RecordedSimulation,
+    cost: &mut RecordCost,
+    wall: &mut f64,
+    bytes: &mut u64,
+) -> Result<(), BenchError> {
+    let before = rs.recorder.as_ref().map_or(0, |r| r.bytes_written());
+    let t = Instant::now();
+    rs.keyframe(None)?;
+    *wall += t.elapsed().as_secs_f64();
+    *bytes += rs.recorder.as_ref().map_or(0, |r| r.bytes_written()) - before;
+    cost.keyframes += 1;
+    Ok(())
+}
+
+/// Measures `sc` without and with recording (to `file`, removed afterwards), each for `min_wall_s`;
+/// returns the recorded row with its measured overhead.
+pub fn record_overhead(
+    sc: &Scenario,
+    backend: BackendKind,
+    min_wall_s: f64,
+    file: &std::path::Path,
+) -> Result<(BenchRow, BenchRow), BenchError> {
+    let plain = measure_with(sc, backend, min_wall_s, 3, u64::MAX, None)?;
+    let mut rec = measure_with(sc, backend, min_wall_s, 3, u64::MAX, Some(file))?;
+    let _ = std::fs::remove_file(file);
+    if let Some(c) = &mut rec.recording {
+        c.overhead_measured_pct = 100.0 * (1.0 - rec.ps_per_s / plain.ps_per_s.max(1e-30));
+    }
+    Ok((plain, rec))
+}
+
+/// The `--record` columns: overhead, keyframe cost and size, recording bytes per simulated second.
+pub fn record_table(rows: &[BenchRow]) -> String {
+    let mut out = format!(
+        "{:<8} {:>9} {:>12} {:>12} {:>11} {:>12} {:>9} {:>14} {:>12}\n",
+        "backend",
+        "particles",
+        "overhead %",
+        "policy %",
+        "keyframe ms",
+        "keyframe MB",
+        "hash ms",
+        "MB per sim s",
+        "file MB"
+    );
+    for r in rows {
+        let Some(c) = &r.recording else { continue };
+        out.push_str(&format!(
+            "{:<8} {:>9} {:>12.1} {:>12.2} {:>11.1} {:>12.2} {:>9.2} {:>14.1} {:>12.2}\n",
+            r.backend,
+            r.particles,
+            c.overhead_measured_pct,
+            c.overhead_policy_pct,
+            c.keyframe_ms,
+            c.keyframe_bytes / 1e6,
+            c.hash_ms,
+            c.bytes_per_simulated_s / 1e6,
+            c.file_bytes as f64 / 1e6
+        ));
+    }
+    out
 }
 
 /// Least-squares slope of log(time per step) against log(N) over rows of one back-end.

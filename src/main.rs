@@ -105,6 +105,10 @@ enum Cmd {
         /// Write the rows as JSON.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Also measure each configuration while recording it as the viewer does (keyframes, state
+        /// hashes) to a temporary file: overhead, keyframe cost and size, bytes per simulated second.
+        #[arg(long)]
+        record: bool,
     },
     /// Render a scenario headless at simulated time T to a PNG (offscreen, the viewer's renderer).
     Render {
@@ -506,7 +510,7 @@ fn real_main() -> Result<()> {
             }
             Ok(())
         }
-        Cmd::Bench { sizes, scenario, set, backends, seconds, json } => {
+        Cmd::Bench { sizes, scenario, set, backends, seconds, json, record } => {
             if !(seconds.is_finite() && seconds > 0.0) {
                 bail!("--seconds must be positive, got {seconds}");
             }
@@ -522,8 +526,22 @@ fn real_main() -> Result<()> {
             let mut rows = Vec::new();
             for sc in &scenarios {
                 for &b in &backends {
-                    eprintln!("measuring {} on {:?}…", sc.name, b);
-                    let row = match perfuse::bench::measure(sc, b.into(), seconds, 3, u64::MAX) {
+                    eprintln!(
+                        "measuring {} on {:?}{}…",
+                        sc.name,
+                        b,
+                        if record { ", without and with recording" } else { "" }
+                    );
+                    let measured = if record {
+                        let file = std::env::temp_dir().join(format!("perfuse-bench-{}.pfrec", std::process::id()));
+                        perfuse::bench::record_overhead(sc, b.into(), seconds, &file).map(|(plain, rec)| {
+                            eprint!("{}", perfuse::bench::table(std::slice::from_ref(&plain)));
+                            rec
+                        })
+                    } else {
+                        perfuse::bench::measure(sc, b.into(), seconds, 3, u64::MAX)
+                    };
+                    let row = match measured {
                         Ok(row) => row,
                         Err(perfuse::bench::BenchError::Sim(perfuse::sim::SimError::Gpu(msg)))
                             if backends.len() > 1 =>
@@ -538,6 +556,9 @@ fn real_main() -> Result<()> {
                 }
             }
             println!("{}", perfuse::bench::table(&rows));
+            if record {
+                println!("{}", perfuse::bench::record_table(&rows));
+            }
             for &b in &backends {
                 let name = format!("{:?}", BackendKind::from(b)).to_lowercase();
                 let of: Vec<&perfuse::bench::BenchRow> = rows.iter().filter(|r| r.backend == name).collect();

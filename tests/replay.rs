@@ -252,3 +252,33 @@ fn relaxed_block_other_size() -> perfuse::scenario::Scenario {
     let text = common::scenes::PERFUSED_BLOCK_3D.replace("max: (0.005, 0.005, 0.004)", "max: (0.005, 0.005, 0.0035)");
     perfuse::scenario::Scenario::from_str_named(&text, "smaller_block.ron").expect("valid")
 }
+
+/// `perfuse bench --record` (issue 8 §1: "measure it"): a run recorded as the viewer records it is
+/// compared with one that is not; the keyframe's cost and size are reported and the file is removed.
+#[test]
+fn bench_measures_the_cost_of_recording() {
+    let dir = temp("bench-record");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let scenario = dir.join("block.ron");
+    std::fs::write(&scenario, common::scenes::PERFUSED_BLOCK_3D).expect("write");
+    let file = dir.join("bench.pfrec");
+    let (plain, rec) =
+        perfuse::bench::record_overhead(&perfused_block(), BackendKind::Cpu, 0.3, &file).expect("measured");
+    let c = rec.recording.as_ref().expect("recording cost");
+    assert!(plain.recording.is_none());
+    assert!(c.keyframes >= 1 && c.keyframe_bytes > 1000.0 && c.file_bytes as f64 >= c.keyframe_bytes, "{c:?}");
+    assert!(c.overhead_policy_pct.is_finite() && c.overhead_measured_pct.is_finite() && c.bytes_per_simulated_s > 0.0);
+    assert!(!file.exists(), "the temporary recording is removed");
+    // The CLI prints both tables.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_perfuse"))
+        .arg("bench")
+        .arg("--scenario")
+        .arg(&scenario)
+        .args(["--backends", "cpu", "--seconds", "0.3", "--record"])
+        .output()
+        .expect("runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("keyframe MB") && stdout.contains("overhead %"), "{stdout}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

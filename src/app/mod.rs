@@ -182,7 +182,7 @@ impl App {
             replay: self.opts.replay.clone(),
         };
         let sim_thread = sim_thread::spawn_with(ctx.clone(), start, rx, shared.clone())
-        .map_err(|e| AppError::Gpu(format!("could not start the simulation thread: {e}")))?;
+            .map_err(|e| AppError::Gpu(format!("could not start the simulation thread: {e}")))?;
         let mut ui_state = ui::UiState {
             scenarios: ui::shipped_scenarios(),
             current: self.opts.scenario_path.clone(),

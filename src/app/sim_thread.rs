@@ -12,7 +12,7 @@
 //! turns the player's simulation into a live one, optionally recording a branch.
 
 use crate::replay::format::Recording;
-use crate::replay::session::{Player, RecordedSimulation, Recorder, recorded_scenario};
+use crate::replay::session::{HASH_EVERY, KEYFRAME_EVERY, Player, RecordedSimulation, Recorder, recorded_scenario};
 use crate::scenario::Scenario;
 use crate::sim::frame::{FrameBuffers, FrameInfo};
 use crate::sim::gpu::GpuContext;
@@ -152,9 +152,6 @@ impl RateMeter {
         }
     }
 }
-
-/// Stepping wall time between keyframes of a live recording: a seek replays at most this much.
-pub const KEYFRAME_EVERY: Duration = Duration::from_secs(10);
 
 /// Where a replay seeks to.
 enum Target {
@@ -672,10 +669,10 @@ impl Runner {
         }
     }
 
-    /// A state hash every 2 s of wall time lets `perfuse replay --verify` check the recording.
+    /// A state hash every [`HASH_EVERY`] of wall time lets `perfuse replay --verify` check the recording.
     fn checkpoint(&mut self) {
         let Some(Mode::Live(rs)) = &mut self.sim else { return };
-        if rs.recorder.is_some() && self.last_checkpoint.elapsed() > Duration::from_secs(2) {
+        if rs.recorder.is_some() && self.last_checkpoint.elapsed() > HASH_EVERY {
             self.last_checkpoint = Instant::now();
             if let Err(e) = rs.checkpoint() {
                 lock(&self.shared.status).error = Some(format!("recording: {e}"));

@@ -26,7 +26,9 @@ pub enum UiAction {
     /// Replay: playback speed (fraction of full speed).
     ReplaySpeed(f64),
     /// Replay: continue live from here, recording a branch when true.
-    TakeOver { branch: bool },
+    TakeOver {
+        branch: bool,
+    },
 }
 
 /// Render-thread statistics.

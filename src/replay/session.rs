@@ -20,6 +20,11 @@ use crate::sim::snapshot::{Snapshot, SnapshotError};
 use crate::sim::{BackendKind, Command, SimError, Simulation};
 use std::path::Path;
 
+/// Stepping wall time between keyframes of a live recording: a seek replays at most this much.
+pub const KEYFRAME_EVERY: std::time::Duration = std::time::Duration::from_secs(10);
+/// Wall time between state hashes of a live recording (`perfuse replay --verify` checks them).
+pub const HASH_EVERY: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// Why a replay failed.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
