@@ -5,4 +5,5 @@ pub mod analytic;
 pub mod dmd;
 pub mod hemorrhage;
 pub mod plot;
+pub mod session;
 pub mod validate;
