@@ -84,6 +84,9 @@ enum Cmd {
         /// Override a scenario field, e.g. --set numerics.dx_liquid=0.0005 (repeatable).
         #[arg(long = "set", value_name = "FIELD=VALUE")]
         set: Vec<String>,
+        /// Also write ParaView frames: frame_NNNNN.vtu beside each CSV frame and frames.pvd.
+        #[arg(long)]
+        vtk: bool,
     },
     /// Particle-steps per second of each back-end on a perfused block at several sizes (or on a scenario).
     Bench {
@@ -157,6 +160,13 @@ enum Cmd {
         verify: bool,
         #[arg(long, value_enum, default_value = "cpu")]
         backend: Backend,
+        /// Export the replay to ParaView: DIR/frame_NNNNN.vtu and DIR/frames.pvd.
+        #[arg(long, value_name = "DIR")]
+        vtk: Option<PathBuf>,
+        /// With --vtk: a frame every SECONDS of simulated time, plus the final state (default: the
+        /// scenario's output.frame_interval, else 0.01).
+        #[arg(long, value_name = "SECONDS", requires = "vtk")]
+        every: Option<f64>,
     },
     /// Scripted hemorrhage through the closed-loop cardiovascular model: vitals.csv and PNG plots.
     Vitals {
@@ -262,6 +272,37 @@ fn render_command(
     Ok(())
 }
 
+/// `perfuse replay FILE --vtk DIR [--every S]`: the replay with a `.vtu` every S simulated seconds
+/// and the final state, listed in `DIR/frames.pvd`.
+fn replay_to_vtk(
+    rec: &perfuse::replay::format::Recording,
+    backend: BackendKind,
+    verify: bool,
+    dir: &std::path::Path,
+    every: Option<f64>,
+) -> Result<perfuse::replay::session::ReplayOutcome> {
+    use perfuse::output::vtk::VtkSeries;
+    use perfuse::replay::session;
+    let every = match every {
+        Some(dt) => dt,
+        None => session::recorded_scenario(rec)?.output.frame_interval.unwrap_or(0.01),
+    };
+    let mut series = VtkSeries::create(dir)?;
+    let out = session::replay_with(rec, backend, verify, Some(every), |state, params| {
+        series.write(&format!("frame_{:05}.vtu", series.frames()), state, params)?;
+        Ok::<(), anyhow::Error>(())
+    })?;
+    let bytes = series.bytes;
+    let frames = series.finish()?;
+    println!(
+        "wrote {frames} VTK frames ({:.1} MB, every {every} s and the final state) and {} to {}",
+        bytes as f64 / 1e6,
+        perfuse::output::vtk::PVD_NAME,
+        dir.display()
+    );
+    Ok(out)
+}
+
 /// The viewer on `cli.scenario`.
 fn viewer(cli: &Cli) -> Result<()> {
     let path = if cli.scenario.is_relative() && !cli.scenario.exists() {
@@ -339,8 +380,14 @@ fn real_main() -> Result<()> {
             );
             Ok(())
         }
-        Cmd::Replay { file, verify, backend } => {
+        Cmd::Replay { file, verify, backend, vtk, every } => {
             use perfuse::replay::{format::read_recording_file, session};
+            // Checked before the (possibly long) read and replay.
+            if let Some(dt) = every
+                && !(dt.is_finite() && dt > 0.0)
+            {
+                bail!("--every must be a positive number of seconds, got {dt}");
+            }
             let rec = read_recording_file(&file)?;
             for w in &rec.warnings {
                 eprintln!("warning: {w}");
@@ -355,7 +402,10 @@ fn real_main() -> Result<()> {
                 rec.chunks.len(),
                 if rec.complete { "" } else { " (incomplete: replaying up to the last good chunk)" }
             );
-            let out = session::replay(&rec, backend.into(), verify)?;
+            let out = match &vtk {
+                None => session::replay(&rec, backend.into(), verify)?,
+                Some(dir) => replay_to_vtk(&rec, backend.into(), verify, dir, every)?,
+            };
             println!(
                 "replayed {} commands to step {} (t = {:.6} s); final state hash {:016x}",
                 out.commands, out.steps, out.t, out.final_hash
@@ -404,7 +454,7 @@ fn real_main() -> Result<()> {
         Cmd::Render { scenario, at, out, size, backend, field, no_fluid, set } => {
             render_command(&scenario, at, &out, &size, backend, &field, no_fluid, &set)
         }
-        Cmd::Run { scenario, backend, until, steps, out, set } => {
+        Cmd::Run { scenario, backend, until, steps, out, set, vtk } => {
             let sc = Scenario::load_with_overrides(&scenario, &set)?;
             if let Some(t) = until
                 && !(t.is_finite() && t > 0.0)
@@ -417,7 +467,7 @@ fn real_main() -> Result<()> {
                 _ => None,
             };
             let out = out.unwrap_or_else(|| PathBuf::from("out").join(&sc.name));
-            let opts = RunOptions { backend: backend.into(), length, out: Some(out.clone()), progress: true };
+            let opts = RunOptions { backend: backend.into(), length, out: Some(out.clone()), progress: true, vtk };
             let summary = run_headless(&sc, &opts).with_context(|| format!("running {}", scenario.display()))?;
             println!(
                 "{}: {} steps, t = {:.4} s, {:.3e} particle-steps/s, dt {:.2e}..{:.2e} s, mass conserved: {}",
@@ -430,6 +480,9 @@ fn real_main() -> Result<()> {
                 summary.mass.conserved
             );
             println!("wrote {} frames and summary.json to {}", summary.frames_written, out.display());
+            if vtk {
+                println!("ParaView: open {}", out.join(perfuse::output::vtk::PVD_NAME).display());
+            }
             if let Some(d) = &summary.divergence {
                 bail!("{d}");
             }
