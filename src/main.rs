@@ -109,15 +109,23 @@ enum Cmd {
         #[arg(long)]
         json: Option<PathBuf>,
     },
-    /// Render a scenario headless at simulated time T to a PNG (offscreen, the viewer's renderer).
+    /// Render a scenario headless at simulated time T to a PNG (offscreen, the viewer's renderer), or a
+    /// PNG sequence from T to --until every --every seconds.
     Render {
         /// Scenario file (RON).
         scenario: PathBuf,
-        /// Simulated time to render [s] (after the scenario's relaxation).
+        /// Simulated time to render [s] (after the scenario's relaxation); the first frame of a sequence.
         #[arg(long, default_value_t = 0.0)]
         at: f64,
+        /// The PNG; a sequence goes to OUT_00000.png, OUT_00001.png, … (OUT without its extension).
         #[arg(long, default_value = "frame.png")]
         out: PathBuf,
+        /// Render a sequence: a frame every DT seconds of simulated time from --at to --until.
+        #[arg(long, value_name = "DT", requires = "until")]
+        every: Option<f64>,
+        /// Last time of a sequence [s] (frames at T, T+DT, … up to it).
+        #[arg(long, value_name = "T2", requires = "every")]
+        until: Option<f64>,
         /// Image size, WIDTHxHEIGHT.
         #[arg(long, default_value = "1280x720")]
         size: String,
@@ -231,10 +239,21 @@ fn parse_field(s: &str) -> Result<perfuse::render::FieldMode> {
     })
 }
 
+/// `OUT_00007.png` for frame 7 of a sequence written to `OUT.png`.
+fn sequence_path(out: &std::path::Path, k: usize) -> PathBuf {
+    let stem = out.file_stem().map_or_else(|| "frame".into(), |s| s.to_string_lossy().into_owned());
+    let ext = out.extension().map_or_else(|| "png".into(), |e| e.to_string_lossy().into_owned());
+    out.with_file_name(format!("{stem}_{k:05}.{ext}"))
+}
+
+/// Most frames one `render --every` writes (a typo such as --every 1e-9 should not fill a disk).
+const MAX_RENDER_FRAMES: f64 = 100_000.0;
+
 #[allow(clippy::too_many_arguments)]
 fn render_command(
     scenario: &std::path::Path,
     at: f64,
+    sequence: Option<(f64, f64)>,
     out: &std::path::Path,
     size: &str,
     backend: Backend,
@@ -250,25 +269,49 @@ fn render_command(
     if !(at.is_finite() && at >= 0.0) {
         bail!("--at must be a time ≥ 0 s, got {at}");
     }
+    // Frame times T + k·DT (multiplied, not summed, so they do not drift) up to --until.
+    let times: Vec<f64> = match sequence {
+        None => vec![at],
+        Some((every, until)) => {
+            if !(every.is_finite() && every > 0.0) {
+                bail!("--every must be a positive number of seconds, got {every}");
+            }
+            if !(until.is_finite() && until >= at) {
+                bail!("--until must be a time ≥ --at ({at} s), got {until}");
+            }
+            let n = ((until - at) / every + 1e-9).floor() + 1.0;
+            if n > MAX_RENDER_FRAMES {
+                bail!("--every {every} from {at} to {until} s makes {n} frames; at most {MAX_RENDER_FRAMES} per run");
+            }
+            (0..n as usize).map(|k| at + k as f64 * every).collect()
+        }
+    };
     let sc = Scenario::load_with_overrides(scenario, set)?;
     let ctx = GpuContext::new().context("rendering needs a GPU adapter (or the lavapipe software adapter)")?;
     let kind: BackendKind = backend.into();
     let mut sim = Simulation::with_gpu(&sc, (kind == BackendKind::Gpu).then(|| ctx.clone()))?;
     let bar = perfuse::output::progress_bar();
     sim.relax(|_| bar.tick())?;
-    sim.advance_until(at, u64::MAX, |t| bar.set_message(format!("t = {t:.4} s")))?;
-    bar.finish_and_clear();
     let mut renderer = Renderer::new(&ctx.device, &ctx.queue)?;
     renderer.settings.field = field;
     renderer.settings.field_scale = field.default_scale();
     renderer.settings.fluid = !no_fluid;
-    let camera = snapshot::default_camera(&sim);
-    let img = snapshot::render_image(&sim, &ctx, &mut renderer, &camera, size)?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    img.save(out).with_context(|| format!("writing {}", out.display()))?;
-    println!("{}: t = {:.4} s rendered to {} ({}×{})", sc.name, sim.time(), out.display(), size.0, size.1);
+    // One camera for the whole sequence (fitted after the relaxation), so the frames line up.
+    let mut camera = None;
+    for (k, &t) in times.iter().enumerate() {
+        sim.advance_until(t, u64::MAX, |t| bar.set_message(format!("t = {t:.4} s")))?;
+        let camera = camera.get_or_insert_with(|| snapshot::default_camera(&sim));
+        let img = snapshot::render_image(&sim, &ctx, &mut renderer, camera, size)?;
+        let path = if sequence.is_some() { sequence_path(out, k) } else { out.to_path_buf() };
+        img.save(&path).with_context(|| format!("writing {}", path.display()))?;
+        bar.suspend(|| {
+            println!("{}: t = {:.4} s rendered to {} ({}×{})", sc.name, sim.time(), path.display(), size.0, size.1)
+        });
+    }
+    bar.finish_and_clear();
     Ok(())
 }
 
@@ -451,8 +494,9 @@ fn real_main() -> Result<()> {
             println!("wrote vitals.csv, vitals.png, hepatic_inflow.png to {}", out.display());
             Ok(())
         }
-        Cmd::Render { scenario, at, out, size, backend, field, no_fluid, set } => {
-            render_command(&scenario, at, &out, &size, backend, &field, no_fluid, &set)
+        Cmd::Render { scenario, at, out, every, until, size, backend, field, no_fluid, set } => {
+            let sequence = every.zip(until);
+            render_command(&scenario, at, sequence, &out, &size, backend, &field, no_fluid, &set)
         }
         Cmd::Run { scenario, backend, until, steps, out, set, vtk } => {
             let sc = Scenario::load_with_overrides(&scenario, &set)?;

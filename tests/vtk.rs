@@ -417,5 +417,20 @@ fn bad_every_values_are_clear_errors() {
         assert!(stderr.contains("--every"), "{args:?}: the error names the flag: {stderr}");
         assert!(!dir.join("x").exists(), "{args:?}: nothing written");
     }
+    // `render --every` is checked before any GPU or simulation work.
+    let scene = dir.join("block.ron");
+    std::fs::write(&scene, PERFUSED_BLOCK_3D).expect("scene");
+    for args in [&["--every", "0", "--until", "0.01"][..], &["--every", "0.01", "--until", "0.01", "--at", "0.02"]] {
+        let out = Process::new(env!("CARGO_BIN_EXE_perfuse"))
+            .arg("render")
+            .arg(&scene)
+            .args(args)
+            .current_dir(&dir)
+            .output()
+            .expect("run perfuse");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && !stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(stderr.contains("--every") || stderr.contains("--until"), "{args:?}: {stderr}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
