@@ -84,6 +84,9 @@ enum Cmd {
         /// Override a scenario field, e.g. --set numerics.dx_liquid=0.0005 (repeatable).
         #[arg(long = "set", value_name = "FIELD=VALUE")]
         set: Vec<String>,
+        /// Also write ParaView frames: frame_NNNNN.vtu beside each CSV frame and frames.pvd.
+        #[arg(long)]
+        vtk: bool,
     },
     /// Particle-steps per second of each back-end on a perfused block at several sizes (or on a scenario).
     Bench {
@@ -110,15 +113,23 @@ enum Cmd {
         #[arg(long)]
         record: bool,
     },
-    /// Render a scenario headless at simulated time T to a PNG (offscreen, the viewer's renderer).
+    /// Render a scenario headless at simulated time T to a PNG (offscreen, the viewer's renderer), or a
+    /// PNG sequence from T to --until every --every seconds.
     Render {
         /// Scenario file (RON).
         scenario: PathBuf,
-        /// Simulated time to render [s] (after the scenario's relaxation).
+        /// Simulated time to render [s] (after the scenario's relaxation); the first frame of a sequence.
         #[arg(long, default_value_t = 0.0)]
         at: f64,
+        /// The PNG; a sequence goes to OUT_00000.png, OUT_00001.png, … (OUT without its extension).
         #[arg(long, default_value = "frame.png")]
         out: PathBuf,
+        /// Render a sequence: a frame every DT seconds of simulated time from --at to --until.
+        #[arg(long, value_name = "DT", requires = "until")]
+        every: Option<f64>,
+        /// Last time of a sequence [s] (frames at T, T+DT, … up to it).
+        #[arg(long, value_name = "T2", requires = "every")]
+        until: Option<f64>,
         /// Image size, WIDTHxHEIGHT.
         #[arg(long, default_value = "1280x720")]
         size: String,
@@ -181,6 +192,13 @@ enum Cmd {
         /// Viewer: start paused.
         #[arg(long)]
         paused: bool,
+        /// Export the replay to ParaView: DIR/frame_NNNNN.vtu and DIR/frames.pvd.
+        #[arg(long, value_name = "DIR")]
+        vtk: Option<PathBuf>,
+        /// With --vtk: a frame every SECONDS of simulated time, plus the final state (default: the
+        /// scenario's output.frame_interval, else 0.01).
+        #[arg(long, value_name = "SECONDS", requires = "vtk")]
+        every: Option<f64>,
     },
     /// Scripted hemorrhage through the closed-loop cardiovascular model: vitals.csv and PNG plots.
     Vitals {
@@ -245,10 +263,21 @@ fn parse_field(s: &str) -> Result<perfuse::render::FieldMode> {
     })
 }
 
+/// `OUT_00007.png` for frame 7 of a sequence written to `OUT.png`.
+fn sequence_path(out: &std::path::Path, k: usize) -> PathBuf {
+    let stem = out.file_stem().map_or_else(|| "frame".into(), |s| s.to_string_lossy().into_owned());
+    let ext = out.extension().map_or_else(|| "png".into(), |e| e.to_string_lossy().into_owned());
+    out.with_file_name(format!("{stem}_{k:05}.{ext}"))
+}
+
+/// Most frames one `render --every` writes (a typo such as --every 1e-9 should not fill a disk).
+const MAX_RENDER_FRAMES: f64 = 100_000.0;
+
 #[allow(clippy::too_many_arguments)]
 fn render_command(
     scenario: &std::path::Path,
     at: f64,
+    sequence: Option<(f64, f64)>,
     out: &std::path::Path,
     size: &str,
     backend: Backend,
@@ -264,26 +293,81 @@ fn render_command(
     if !(at.is_finite() && at >= 0.0) {
         bail!("--at must be a time ≥ 0 s, got {at}");
     }
+    // Frame times T + k·DT (multiplied, not summed, so they do not drift) up to --until.
+    let times: Vec<f64> = match sequence {
+        None => vec![at],
+        Some((every, until)) => {
+            if !(every.is_finite() && every > 0.0) {
+                bail!("--every must be a positive number of seconds, got {every}");
+            }
+            if !(until.is_finite() && until >= at) {
+                bail!("--until must be a time ≥ --at ({at} s), got {until}");
+            }
+            let n = ((until - at) / every + 1e-9).floor() + 1.0;
+            if n > MAX_RENDER_FRAMES {
+                bail!("--every {every} from {at} to {until} s makes {n} frames; at most {MAX_RENDER_FRAMES} per run");
+            }
+            (0..n as usize).map(|k| at + k as f64 * every).collect()
+        }
+    };
     let sc = Scenario::load_with_overrides(scenario, set)?;
     let ctx = GpuContext::new().context("rendering needs a GPU adapter (or the lavapipe software adapter)")?;
     let kind: BackendKind = backend.into();
     let mut sim = Simulation::with_gpu(&sc, (kind == BackendKind::Gpu).then(|| ctx.clone()))?;
     let bar = perfuse::output::progress_bar();
     sim.relax(|_| bar.tick())?;
-    sim.advance_until(at, u64::MAX, |t| bar.set_message(format!("t = {t:.4} s")))?;
-    bar.finish_and_clear();
     let mut renderer = Renderer::new(&ctx.device, &ctx.queue)?;
     renderer.settings.field = field;
     renderer.settings.field_scale = field.default_scale();
     renderer.settings.fluid = !no_fluid;
-    let camera = snapshot::default_camera(&sim);
-    let img = snapshot::render_image(&sim, &ctx, &mut renderer, &camera, size)?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    img.save(out).with_context(|| format!("writing {}", out.display()))?;
-    println!("{}: t = {:.4} s rendered to {} ({}×{})", sc.name, sim.time(), out.display(), size.0, size.1);
+    // One camera for the whole sequence (fitted after the relaxation), so the frames line up.
+    let mut camera = None;
+    for (k, &t) in times.iter().enumerate() {
+        sim.advance_until(t, u64::MAX, |t| bar.set_message(format!("t = {t:.4} s")))?;
+        let camera = camera.get_or_insert_with(|| snapshot::default_camera(&sim));
+        let img = snapshot::render_image(&sim, &ctx, &mut renderer, camera, size)?;
+        let path = if sequence.is_some() { sequence_path(out, k) } else { out.to_path_buf() };
+        img.save(&path).with_context(|| format!("writing {}", path.display()))?;
+        bar.suspend(|| {
+            println!("{}: t = {:.4} s rendered to {} ({}×{})", sc.name, sim.time(), path.display(), size.0, size.1)
+        });
+    }
+    bar.finish_and_clear();
     Ok(())
+}
+
+/// `perfuse replay FILE --vtk DIR [--every S]`: the replay with a `.vtu` every S simulated seconds
+/// and the final state, listed in `DIR/frames.pvd`.
+fn replay_to_vtk(
+    rec: &perfuse::replay::format::Recording,
+    backend: BackendKind,
+    verify: bool,
+    dir: &std::path::Path,
+    every: Option<f64>,
+) -> Result<perfuse::replay::session::ReplayOutcome> {
+    use perfuse::output::vtk::VtkSeries;
+    use perfuse::replay::session;
+    let every = match every {
+        Some(dt) => dt,
+        None => session::recorded_scenario(rec)?.output.frame_interval.unwrap_or(0.01),
+    };
+    let mut series = VtkSeries::create(dir)?;
+    let out = session::replay_with(rec, backend, verify, Some(every), |state, params| {
+        series.write(&format!("frame_{:05}.vtu", series.frames()), state, params)?;
+        Ok::<(), anyhow::Error>(())
+    })?;
+    let bytes = series.bytes;
+    let frames = series.finish()?;
+    println!(
+        "wrote {frames} VTK frames ({:.1} MB, every {every} s and the final state) and {} to {}",
+        bytes as f64 / 1e6,
+        perfuse::output::vtk::PVD_NAME,
+        dir.display()
+    );
+    Ok(out)
 }
 
 /// The viewer on `cli.scenario`.
@@ -364,8 +448,14 @@ fn real_main() -> Result<()> {
             );
             Ok(())
         }
-        Cmd::Replay { file, verify, headless, seek, backend, frames, screenshot, size, paused } => {
+        Cmd::Replay { file, verify, headless, seek, backend, frames, screenshot, size, paused, vtk, every } => {
             use perfuse::replay::{format::read_recording_file, session};
+            // Checked before the (possibly long) read and replay.
+            if let Some(dt) = every
+                && !(dt.is_finite() && dt > 0.0)
+            {
+                bail!("--every must be a positive number of seconds, got {dt}");
+            }
             let rec = read_recording_file(&file)?;
             for w in &rec.warnings {
                 eprintln!("warning: {w}");
@@ -396,7 +486,7 @@ fn real_main() -> Result<()> {
             {
                 bail!("--seek {t}: give a finite time in seconds");
             }
-            if !(verify || headless || seek.is_some()) {
+            if !(verify || headless || seek.is_some() || vtk.is_some()) {
                 if frames == Some(0) {
                     bail!("--frames must be at least 1");
                 }
@@ -422,12 +512,19 @@ fn real_main() -> Result<()> {
                 }
                 return Ok(());
             }
-            let mut player = session::Player::new(rec, backend, verify)?;
-            match seek {
-                Some(t) => player.seek_time(t)?,
-                None => player.play_to_end()?,
-            }
-            let out = player.finish()?;
+            let out = if let Some(dir) = &vtk {
+                if seek.is_some() {
+                    bail!("--seek and --vtk: export the whole recording (leave out --seek)");
+                }
+                replay_to_vtk(&rec, backend, verify, dir, every)?
+            } else {
+                let mut player = session::Player::new(rec, backend, verify)?;
+                match seek {
+                    Some(t) => player.seek_time(t)?,
+                    None => player.play_to_end()?,
+                }
+                player.finish()?
+            };
             println!(
                 "replayed {} commands to step {} (t = {:.6} s, {} keyframes restored); final state hash {:016x}",
                 out.commands, out.steps, out.t, out.keyframes_restored, out.final_hash
@@ -476,10 +573,11 @@ fn real_main() -> Result<()> {
             println!("wrote vitals.csv, vitals.png, hepatic_inflow.png to {}", out.display());
             Ok(())
         }
-        Cmd::Render { scenario, at, out, size, backend, field, no_fluid, set } => {
-            render_command(&scenario, at, &out, &size, backend, &field, no_fluid, &set)
+        Cmd::Render { scenario, at, out, every, until, size, backend, field, no_fluid, set } => {
+            let sequence = every.zip(until);
+            render_command(&scenario, at, sequence, &out, &size, backend, &field, no_fluid, &set)
         }
-        Cmd::Run { scenario, backend, until, steps, out, set } => {
+        Cmd::Run { scenario, backend, until, steps, out, set, vtk } => {
             let sc = Scenario::load_with_overrides(&scenario, &set)?;
             if let Some(t) = until
                 && !(t.is_finite() && t > 0.0)
@@ -492,7 +590,7 @@ fn real_main() -> Result<()> {
                 _ => None,
             };
             let out = out.unwrap_or_else(|| PathBuf::from("out").join(&sc.name));
-            let opts = RunOptions { backend: backend.into(), length, out: Some(out.clone()), progress: true };
+            let opts = RunOptions { backend: backend.into(), length, out: Some(out.clone()), progress: true, vtk };
             let summary = run_headless(&sc, &opts).with_context(|| format!("running {}", scenario.display()))?;
             println!(
                 "{}: {} steps, t = {:.4} s, {:.3e} particle-steps/s, dt {:.2e}..{:.2e} s, mass conserved: {}",
@@ -505,6 +603,9 @@ fn real_main() -> Result<()> {
                 summary.mass.conserved
             );
             println!("wrote {} frames and summary.json to {}", summary.frames_written, out.display());
+            if vtk {
+                println!("ParaView: open {}", out.join(perfuse::output::vtk::PVD_NAME).display());
+            }
             if let Some(d) = &summary.divergence {
                 bail!("{d}");
             }

@@ -124,6 +124,7 @@ fn every_shipped_scenario_runs_headless() {
             length: Some(RunLength::Steps(20)),
             out: Some(out.clone()),
             progress: false,
+            vtk: false,
         };
         let summary = run_headless(&sc, &opts).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         assert!(!summary.diverged, "{}: {:?}", sc.name, summary.divergence);

@@ -176,8 +176,13 @@ fn gpu_emits_and_sinks_like_the_cpu() {
 #[test]
 fn hepatic_inflow_over_five_cardiac_cycles() {
     let scn = Scenario::from_str_named(HEPATIC_DUCT, "hepatic duct (test)").expect("scenario");
-    let opts =
-        RunOptions { backend: BackendKind::Cpu, length: Some(RunLength::Until(3.97)), out: None, progress: false };
+    let opts = RunOptions {
+        backend: BackendKind::Cpu,
+        length: Some(RunLength::Until(3.97)),
+        out: None,
+        progress: false,
+        vtk: false,
+    };
     let s = run_headless(&scn, &opts).expect("run");
     let want = s.hepatic_inflow_sim_m3.expect("hepatic inflow integral");
     let v_p = s.emitters.emitted_volume_m3 / s.emitters.emitted as f64;

@@ -71,6 +71,7 @@ fn torn_slab_has_two_components_in_the_summary() {
         length: Some(RunLength::Until(0.012)),
         out: Some(out.clone()),
         progress: false,
+        vtk: false,
     };
     let summary = run_headless(&sc, &opts).expect("run");
     let text = std::fs::read_to_string(out.join("summary.json")).expect("summary");

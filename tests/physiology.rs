@@ -40,6 +40,7 @@ fn run(sc: &Scenario, name: &str) -> (perfuse::output::Summary, std::path::PathB
         length: Some(RunLength::Until(0.002)),
         out: Some(out.clone()),
         progress: false,
+        vtk: false,
     };
     (run_headless(sc, &opts).expect("run"), out)
 }

@@ -164,3 +164,38 @@ fn half_to_f32(h: u16) -> f32 {
         _ => s * (1.0 + m / 1024.0) * 2f32.powi(e - 15),
     }
 }
+
+/// `perfuse render --every --until` writes a numbered PNG sequence from one simulation run (two
+/// frames at a tiny size, so the test costs about a second on lavapipe).
+#[test]
+fn render_every_writes_a_numbered_png_sequence() {
+    if std::env::var("PERFUSE_SKIP_GPU_TESTS").is_ok_and(|v| v == "1") {
+        eprintln!(
+            "\n!!!!!!!! PERFUSE_SKIP_GPU_TESTS=1: SKIPPING `render_every_writes_a_numbered_png_sequence` !!!!!!!!\n"
+        );
+        return;
+    }
+    let dir = artifact("render_sequence");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    let scene = dir.join("scene.ron");
+    std::fs::write(&scene, SCENE).expect("scene");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_perfuse"))
+        .arg("render")
+        .arg(&scene)
+        .args(["--backend", "cpu", "--size", "64x48", "--at", "0", "--every", "0.001", "--until", "0.001", "--out"])
+        .arg(dir.join("seq.png"))
+        .output()
+        .expect("run perfuse");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    for k in 0..2 {
+        let img = image::open(dir.join(format!("seq_{k:05}.png"))).expect("frame is a PNG").to_rgba8();
+        assert_eq!(img.dimensions(), (64, 48));
+    }
+    assert!(!dir.join("seq_00002.png").exists() && !dir.join("seq.png").exists());
+    let times: Vec<f64> =
+        stdout.lines().filter_map(|l| l.split("t = ").nth(1)?.split(' ').next()?.parse().ok()).collect();
+    assert_eq!(times.len(), 2, "{stdout}");
+    assert!(times[0] == 0.0 && times[1] >= 0.001, "{stdout}");
+}

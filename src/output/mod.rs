@@ -1,5 +1,8 @@
 //! Headless runs and what they write: CSV frames (one row per particle), probe time series and
-//! `summary.json` (the CLI contract of `perfuse run`, documented in the README).
+//! `summary.json` (the CLI contract of `perfuse run`, documented in the README); with `--vtk` also
+//! ParaView frames (`vtk`).
+
+pub mod vtk;
 
 use crate::scenario::{Phase, Quantity, Scenario};
 use crate::sim::{BackendKind, SimError, Simulation, State};
@@ -102,6 +105,9 @@ pub struct RunOptions {
     pub length: Option<RunLength>,
     pub out: Option<PathBuf>,
     pub progress: bool,
+    /// Also write `frame_NNNNN.vtu` beside each CSV frame (`final.vtu` beside `final.csv`) and
+    /// `frames.pvd` listing them (`perfuse run --vtk`); needs `out`.
+    pub vtk: bool,
 }
 
 /// One probe's per-particle selection.
@@ -289,9 +295,19 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     let mut frames = 0usize;
     let mut frame_times: Vec<f64> = Vec::new();
     let mut probe_rows: Vec<(f64, Vec<f64>)> = Vec::new();
-    let write_frame = |state: &State, frames: &mut usize, times: &mut Vec<f64>| -> Result<(), OutputError> {
+    // ParaView frames beside the CSV ones; the collection is valid after every frame, so a run that
+    // stops early still has an index.
+    let mut vtk = match &opts.out {
+        Some(dir) if opts.vtk => Some(vtk::VtkSeries::create(dir)?),
+        _ => None,
+    };
+    let params = sim.params().clone();
+    let mut write_frame = |state: &State, frames: &mut usize, times: &mut Vec<f64>| -> Result<(), OutputError> {
         if let Some(dir) = &opts.out {
             write_frame_csv(&dir.join(format!("frame_{:05}.csv", *frames)), state, origin)?;
+        }
+        if let Some(series) = &mut vtk {
+            series.write(&format!("frame_{:05}.vtu", *frames), state, &params)?;
         }
         *frames += 1;
         times.push(state.t);
@@ -382,6 +398,13 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         && let Some(dir) = &opts.out
     {
         write_frame_csv(&dir.join("final.csv"), &fin, origin)?;
+        // ParaView needs no uniform spacing: the final state is the collection's last entry.
+        if let Some(series) = &mut vtk {
+            series.write("final.vtu", &fin, &params)?;
+        }
+    }
+    if let Some(series) = vtk {
+        series.finish()?;
     }
     if let Some(dir) = &opts.out
         && !scenario.output.probes.is_empty()

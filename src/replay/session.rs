@@ -547,3 +547,46 @@ impl Player {
 fn sim_err(rec: &Recording, step: u64, e: SimError) -> SessionError {
     SessionError::Sim { file: rec.source.clone(), step, source: Box::new(e) }
 }
+
+/// [`replay`], showing the state to `on_frame` at the first step at or after every multiple of
+/// `frame_interval` seconds of simulated time from t = 0 (after the commands recorded at that step;
+/// not during a recorded relaxation, which runs at t < 0), and the final state. Without an interval
+/// (or with one that is not a positive finite number, which the CLI refuses) it sees only the final
+/// state. Stopping at frame times does not change the steps: `Simulation::advance` ends a batch after
+/// the step that reaches its time, it does not shorten Δt, so the replay stays the recorded one (and
+/// `verify` still holds). `on_frame`'s error type takes [`SessionError`]s too.
+pub fn replay_with<E: From<SessionError>>(
+    rec: &Recording,
+    backend: BackendKind,
+    verify: bool,
+    frame_interval: Option<f64>,
+    mut on_frame: impl FnMut(&crate::sim::State, &crate::sim::params::Params) -> Result<(), E>,
+) -> Result<ReplayOutcome, E> {
+    let mut player = Player::new(rec.clone(), backend, verify)?;
+    let mut last_t = f64::NEG_INFINITY;
+    let mut show = |player: &mut Player, last_t: &mut f64| -> Result<(), E> {
+        let steps = player.steps();
+        let st = player.sim.read_state().map_err(|e| sim_err(&player.rec, steps, e))?;
+        if st.t > *last_t + 1e-12 {
+            on_frame(&st, player.sim.params())?;
+            *last_t = st.t;
+        }
+        Ok(())
+    };
+    if let Some(dt) = frame_interval.filter(|dt| dt.is_finite() && *dt > 0.0) {
+        let mut k = 0u64;
+        while !player.at_end() {
+            let t = k as f64 * dt;
+            player.play_to_time(t)?;
+            if player.sim.time() < t - 1e-12 {
+                break; // the recording ended before the frame's time
+            }
+            show(&mut player, &mut last_t)?;
+            // the next frame time after the clock (a step may cross several)
+            k = ((player.sim.time() + 1e-12) / dt).floor().max(k as f64) as u64 + 1;
+        }
+    }
+    player.play_to_end()?;
+    show(&mut player, &mut last_t)?;
+    Ok(player.finish()?)
+}
