@@ -370,6 +370,22 @@ fn replay_to_vtk(
     Ok(out)
 }
 
+/// The session's metrics at the end of a viewer session with a patient.
+fn print_session(m: Option<&perfuse::analysis::session::SessionReport>) {
+    let Some(m) = m else { return };
+    let secs = |t: Option<f64>| t.map_or("none".to_string(), |t| format!("{t:.2} s"));
+    println!(
+        "session: {:.1} mL blood lost, peak loss rate {:.1} mL/min, {} bonds broken, first cut {}, hemostasis {} \
+         (cut to hemostasis {})",
+        m.blood_lost_ml,
+        m.peak_loss_rate_ml_min,
+        m.broken_bonds,
+        secs(m.first_cut_s),
+        secs(m.hemostasis_s),
+        secs(m.cut_to_hemostasis_s)
+    );
+}
+
 /// The viewer on `cli.scenario`.
 fn viewer(cli: &Cli) -> Result<()> {
     let path = if cli.scenario.is_relative() && !cli.scenario.exists() {
@@ -403,6 +419,7 @@ fn viewer(cli: &Cli) -> Result<()> {
         "viewer: {} frames, {:.1} fps; simulation {} steps, {:.1} steps/s",
         report.frames, report.fps, report.sim_steps, report.steps_per_s
     );
+    print_session(report.session.as_ref());
     if let Some(p) = &report.screenshot {
         if !p.exists() {
             bail!("the screenshot {} was not written", p.display());
@@ -504,6 +521,7 @@ fn real_main() -> Result<()> {
                 };
                 let report = perfuse::app::run(opts)?;
                 println!("viewer: {} frames; simulation {} steps", report.frames, report.sim_steps);
+                print_session(report.session.as_ref());
                 if let Some(p) = &report.screenshot {
                     if !p.exists() {
                         bail!("the screenshot {} was not written", p.display());

@@ -64,6 +64,13 @@ fn blood_outside_the_body_is_lost_by_the_patient() {
     assert!(csv.lines().count() >= 5, "one row per frame:\n{csv}");
     let json = std::fs::read_to_string(out.join("summary.json")).expect("summary");
     assert!(json.contains("\"blood_lost_ml\"") && json.contains("\"vitals_final\""));
+    // The session's metrics (issue 7 §4) from the same samples: no cut in this scene; the 2 ms run is
+    // shorter than the loss-rate window, so no rate yet.
+    let m = s.session.as_ref().expect("session metrics with a patient");
+    assert_eq!(m.blood_lost_ml, lost);
+    assert_eq!((m.broken_bonds, m.first_cut_s, m.hemostasis_s), (s.broken_bonds, None, None));
+    assert_eq!(m.peak_loss_rate_ml_min, 0.0);
+    assert!(json.contains("\"session\"") && json.contains("\"peak_loss_rate_ml_min\""));
     let _ = std::fs::remove_dir_all(&out);
 }
 

@@ -33,6 +33,7 @@ pub fn scripted_hemorrhage(
             hepatic_inflow_ml_s: m.hepatic_flow_m3_s() * 1e6,
             arterial_pressure_mmhg: m.arterial_pressure_mmhg(),
             vitals: m.vitals(),
+            broken_bonds: 0,
         });
         // Remove the blood lost during [t, next) inside the bleeding window.
         let (a, b) = (t.max(start_s), next.min(start_s + over_s));

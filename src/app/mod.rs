@@ -67,6 +67,8 @@ pub struct ViewerReport {
     pub frames: u64,
     pub fps: f64,
     pub sim_steps: u64,
+    /// Scenarios with a patient: the session's metrics at the end.
+    pub session: Option<crate::analysis::session::SessionReport>,
     pub steps_per_s: f64,
     pub screenshot: Option<PathBuf>,
 }
@@ -301,6 +303,7 @@ impl ApplicationHandler for App {
                 {
                     let st = lock(&g.shared.status);
                     self.report.sim_steps = st.steps;
+                    self.report.session = st.session.clone();
                     self.report.steps_per_s = st.steps_per_s;
                 }
                 if let Some(n) = self.opts.frames {

@@ -111,6 +111,9 @@ pub struct SimStatus {
     pub replay: Option<ReplayStatus>,
     /// The file being recorded and its size so far [bytes].
     pub recording: Option<(String, u64)>,
+    /// Scenarios with a patient: the session's metrics so far (blood lost, peak loss rate, first cut,
+    /// hemostasis).
+    pub session: Option<crate::analysis::session::SessionReport>,
 }
 
 /// What the two threads share.
@@ -181,6 +184,8 @@ struct Runner {
     /// Stepping wall time since the last keyframe of the recording.
     since_keyframe: Duration,
     patient: Option<crate::sim::physiology::Patient>,
+    /// The session's metrics, from the patient's samples.
+    metrics: crate::analysis::session::SessionMetrics,
     last_vitals: Instant,
     frames: Option<Arc<FrameSet>>,
     generation: u64,
@@ -206,6 +211,7 @@ impl Runner {
     fn build(&mut self) {
         self.finish_recording();
         self.sim = None;
+        self.metrics = Default::default();
         let mut status = SimStatus { scenario: self.scenario.name.clone(), paused: self.paused, ..Default::default() };
         if let Some(rec) = self.replay.take() {
             self.build_replay(rec, &mut status);
@@ -657,8 +663,10 @@ impl Runner {
         match (state, self.patient.as_mut()) {
             (Ok(state), Some(p)) => {
                 let v = p.update(&state, rho0);
+                self.metrics.push(state.t, v.blood_lost_ml, state.broken_bonds());
                 let mut st = lock(&self.shared.status);
                 st.vitals = Some(v);
+                st.session = Some(self.metrics.report().clone());
                 st.vitals_history.push([state.t, v.map_mmhg, v.hr_bpm, v.blood_lost_ml]);
                 if st.vitals_history.len() > 2000 {
                     st.vitals_history.drain(..1000);
@@ -758,6 +766,7 @@ pub fn spawn_with(
         last_checkpoint: Instant::now(),
         since_keyframe: Duration::ZERO,
         patient: None,
+        metrics: Default::default(),
         last_vitals: Instant::now(),
         frames: None,
         generation: 0,

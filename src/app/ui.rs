@@ -91,6 +91,11 @@ pub fn panels(
     }
     if let Some(r) = &status.replay {
         timeline(ui, state, status, r, &mut actions);
+        if let (true, Some(m)) = (r.at_end, &status.session) {
+            egui::Window::new("Session summary").collapsible(true).default_pos([420.0, 60.0]).show(ui.ctx(), |ui| {
+                session_grid(ui, m);
+            });
+        }
     }
     egui::Panel::left("controls").resizable(true).default_size(300.0).show(ui, |ui| {
         egui::ScrollArea::vertical().show(ui, |ui| {
@@ -219,6 +224,10 @@ pub fn panels(
                     row(ui, "hepatic inflow", format!("{:.0} mL/min", v.hepatic_flow_ml_min));
                 });
                 vitals_plot(ui, &status.vitals_history);
+                if let Some(m) = &status.session {
+                    ui.strong("Session");
+                    session_grid(ui, m);
+                }
                 ui.separator();
             }
 
@@ -276,6 +285,29 @@ pub fn panels(
         state.show_help = open;
     }
     actions
+}
+
+/// The session's metrics (issue 7 §4): what an instructor grades.
+fn session_grid(ui: &mut egui::Ui, m: &crate::analysis::session::SessionReport) {
+    let secs = |t: Option<f64>| t.map_or("–".to_string(), |t| format!("{t:.2} s"));
+    egui::Grid::new(ui.next_auto_id()).num_columns(2).show(ui, |ui| {
+        let mut row = |k: &str, v: String| {
+            ui.label(k);
+            ui.label(v);
+            ui.end_row();
+        };
+        row("blood lost", format!("{:.1} mL", m.blood_lost_ml));
+        row("loss rate", format!("{:.1} mL/min (peak {:.1})", m.loss_rate_ml_min, m.peak_loss_rate_ml_min));
+        row("bonds broken", m.broken_bonds.to_string());
+        row("first cut", secs(m.first_cut_s));
+        let hemostasis = match (m.first_cut_s, m.bled, m.hemostasis_s) {
+            (None, _, _) => "no cut yet".to_string(),
+            (Some(_), false, _) => "no bleeding above the threshold".to_string(),
+            (Some(_), true, None) => "bleeding".to_string(),
+            (Some(_), true, Some(_)) => format!("after {}", secs(m.cut_to_hemostasis_s)),
+        };
+        row(&format!("hemostasis (≤ {} mL/min)", m.hemostasis_threshold_ml_min), hemostasis);
+    });
 }
 
 /// The replay timeline: play/pause, back to the start, speed, a seek bar with the keyframes marked,

@@ -81,6 +81,9 @@ pub struct Summary {
     pub blood_outside_organ_m3: Option<f64>,
     pub model_hepatic_volume_m3: Option<f64>,
     pub vitals_final: Option<crate::sim::cardio::Vitals>,
+    /// With `physiology`: the session's metrics — blood lost, peak loss rate, bonds broken, first cut,
+    /// hemostasis and the time from the first cut to it (`analysis::session`), from the vitals samples.
+    pub session: Option<crate::analysis::session::SessionReport>,
     /// Liquid volume added by the emitters, Σ m/ρ₀ [m³] (0 without emitters).
     pub emitted_volume_m3: f64,
     /// With a `Hepatic` emitter: the model's hepatic inflow over the run in simulated volume
@@ -153,6 +156,8 @@ pub struct VitalsSample {
     pub hepatic_inflow_ml_s: f64,
     pub arterial_pressure_mmhg: f64,
     pub vitals: crate::sim::cardio::Vitals,
+    /// Bonds broken since t = 0 (0 for the scripted hemorrhage).
+    pub broken_bonds: u64,
 }
 
 /// Writes `vitals.csv` (headless runs with `physiology`, `perfuse vitals`).
@@ -249,6 +254,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
             let vitals = p.update(st, rho0_l);
             rows.push(VitalsSample {
                 t_s: st.t,
+                broken_bonds: st.broken_bonds(),
                 hepatic_inflow_ml_s: p.model.hepatic_flow_m3_s() * 1e6,
                 arterial_pressure_mmhg: p.model.arterial_pressure_mmhg(),
                 vitals,
@@ -471,6 +477,13 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         blood_outside_organ_m3: lost_sim,
         model_hepatic_volume_m3: model_hepatic,
         vitals_final: vitals_rows.last().map(|r| r.vitals),
+        session: scenario.physiology.as_ref().map(|_| {
+            let mut m = crate::analysis::session::SessionMetrics::default();
+            for r in &vitals_rows {
+                m.push(r.t_s, r.vitals.blood_lost_ml, r.broken_bonds);
+            }
+            m.report().clone()
+        }),
         emitted_volume_m3: emit_totals.emitted_volume_m3,
         hepatic_inflow_sim_m3: hepatic_inflow_sim,
         emitters: emit_totals,
