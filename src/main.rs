@@ -573,6 +573,8 @@ fn real_main() -> Result<()> {
             }
             let samples = hemorrhage::scripted_hemorrhage(Default::default(), loss, start, over, duration, 0.5)?;
             hemorrhage::write_outputs(&samples, &out).map_err(anyhow::Error::msg)?;
+            let windows = hemorrhage::pulse_windows(Default::default(), loss, start, over, duration)?;
+            hemorrhage::write_pulse_plot(&windows, &out).map_err(anyhow::Error::msg)?;
             if let Some(last) = samples.last() {
                 let v = &last.vitals;
                 println!(
@@ -588,7 +590,7 @@ fn real_main() -> Result<()> {
                     v.shock_class
                 );
             }
-            println!("wrote vitals.csv, vitals.png, hepatic_inflow.png to {}", out.display());
+            println!("wrote vitals.csv, vitals.png, hepatic_inflow.png, hepatic_pulse.png to {}", out.display());
             Ok(())
         }
         Cmd::Render { scenario, at, out, every, until, size, backend, field, no_fluid, set } => {
