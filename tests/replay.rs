@@ -1,5 +1,5 @@
-//! Recording and replay (issue 8): a scripted session — a tool driven along a path with commands at
-//! chosen steps, state hashes along the way — replays to identical hashes and the identical final
+//! Recording and replay (issue 8): a scripted session — a scalpel driven along a cutting path with
+//! commands at chosen steps, state hashes along the way — replays to identical hashes and the identical final
 //! state on the same back-end (CPU, and GPU against itself); a recording cut mid-chunk replays up to
 //! its last good chunk with a warning.
 
@@ -15,26 +15,46 @@ fn temp(name: &str) -> std::path::PathBuf {
     std::env::temp_dir().join(format!("perfuse-{}-{name}", std::process::id()))
 }
 
-/// Records a scalpel-like path of the block scene's tool; returns the final state hash.
-fn record(backend: BackendKind, path: &std::path::Path) -> u64 {
-    let sc = perfused_block();
+/// The block scene with its tool replaced by a scalpel: a thin blade (0.6 mm × 5 mm × 1.2 mm) parked
+/// above the tissue.
+fn scalpel_block() -> perfuse::scenario::Scenario {
+    let text = common::scenes::PERFUSED_BLOCK_3D.replace(
+        r#"Boundary(name: "tool", shape: Sphere(centre: (0.003, 0.003, 0.005), radius: 0.0008),
+                 motion: Translate(velocity: (0.0, 0.0, -0.1))),"#,
+        r#"Boundary(name: "scalpel", shape: Box(min: (0.0017, 0.0005, 0.0046), max: (0.0023, 0.0055, 0.0058)),
+                 spacing: Some(0.0003), tool: Some(Tool(kind: Scalpel, max_speed: 0.2))),"#,
+    );
+    assert_ne!(text, common::scenes::PERFUSED_BLOCK_3D, "the tool was replaced");
+    perfuse::scenario::Scenario::from_str_named(&text, "scalpel_block.ron").expect("valid")
+}
+
+/// Records a scripted scalpel session: the blade lowered into the tissue, drawn through it (bonds
+/// break), lifted out, with state hashes along the way; returns the final state hash and the bonds
+/// broken.
+fn record(backend: BackendKind, path: &std::path::Path) -> (u64, u64) {
+    let sc = scalpel_block();
     let sim = Simulation::new(&sc, backend).expect("sim");
     let recorder = Recorder::create(path, &sc, &format!("{backend:?}"), "").expect("recorder");
     let mut rs = RecordedSimulation { sim, recorder: Some(recorder) };
     rs.relax().expect("relax");
-    let path_points = [[0.0025, 0.003, 0.0052], [0.0035, 0.003, 0.0046], [0.0045, 0.0032, 0.0046]];
+    // centre positions of the blade: above the tissue, 1 mm deep, drawn 2.2 mm along x, lifted out
+    let path_points =
+        [[0.002, 0.003, 0.0052], [0.002, 0.003, 0.0036], [0.0042, 0.003, 0.0036], [0.0042, 0.003, 0.0052]];
+    let speed = 1.0;
     rs.apply(&Command::PlaceObject { object: 1, position: path_points[0] }).expect("place");
-    for (k, p) in path_points.iter().enumerate().skip(1) {
-        rs.sim.advance(17 + 5 * k as u32, f64::INFINITY).expect("advance");
+    for w in path_points.windows(2) {
+        rs.apply(&Command::MoveObject { object: 1, target: w[1], speed }).expect("move");
+        let dist = (0..3).map(|a| (w[1][a] - w[0][a]).powi(2)).sum::<f64>().sqrt();
+        let t_end = rs.sim.time() + dist / speed + 1e-4;
+        rs.sim.advance_until(t_end, u64::MAX, |_| {}).expect("advance");
         rs.checkpoint().expect("hash");
-        rs.apply(&Command::MoveObject { object: 1, target: *p, speed: 0.05 }).expect("move");
     }
     rs.apply(&Command::SetGravity([0.0, 0.0, -4.0])).expect("gravity");
-    rs.sim.advance(30, f64::INFINITY).expect("advance");
+    rs.sim.advance(20, f64::INFINITY).expect("advance");
     rs.checkpoint().expect("hash");
-    let h = rs.sim.read_state().expect("state").hash();
+    let st = rs.sim.read_state().expect("state");
     rs.recorder.take().expect("recording").finish().expect("finish");
-    h
+    (st.hash(), st.broken_bonds())
 }
 
 /// A lower bound of the header's size: it holds the scenario text plus a few short fields.
@@ -44,18 +64,19 @@ fn rec_header_len(path: &std::path::Path) -> usize {
 
 fn record_and_replay(backend: BackendKind, name: &str) {
     let path = temp(name);
-    let live = record(backend, &path);
+    let (live, broken) = record(backend, &path);
     let rec = read_recording_file(&path).expect("readable");
     assert!(rec.complete && rec.warnings.is_empty(), "{:?}", rec.warnings);
     let out = replay(&rec, backend, true).expect("replay");
     eprintln!(
-        "{backend:?}: {} commands, {} hashes checked, {} steps, {} bytes",
+        "{backend:?}: {} commands, {} hashes checked, {} steps, {broken} bonds cut, {} bytes",
         out.commands,
         out.hashes_checked,
         out.steps,
         std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0)
     );
-    assert!(out.commands >= 4 && out.hashes_checked >= 3);
+    assert!(broken > 0, "the scalpel cut no bond");
+    assert!(out.commands >= 5 && out.hashes_checked >= 4);
     assert!(out.mismatches.is_empty(), "hash mismatches {:?}", out.mismatches);
     assert_eq!(out.final_hash, live, "replayed final state differs from the live one");
 
