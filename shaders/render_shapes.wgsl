@@ -1,6 +1,8 @@
 // render_shapes.wgsl — boundary objects (walls, plates, tools) drawn from their analytic shapes at
 // the published pose (src/render/renderer.rs): boxes as 12 flat-shaded triangles, spheres as exact
-// impostors. 36 vertices per instance; a sphere uses the first six and collapses the rest.
+// impostors, a scalpel's blade as a wedge (the box with its cutting edge side collapsed to the
+// mid-plane of its thickness). 36 vertices per instance; a sphere uses the first six and collapses
+// the rest.
 
 #import render_common
 
@@ -12,7 +14,7 @@ struct Shape {
     b: vec4<f32>,
     // linear RGB and opacity
     colour: vec4<f32>,
-    // x: 0 box, 1 sphere
+    // x: 0 box, 1 sphere, 2 blade (y: thickness axis, z: height axis; the edge on its min side)
     kind: vec4<u32>,
 }
 
@@ -53,6 +55,21 @@ fn box_normal(face: u32) -> vec3<f32> {
     return n[face];
 }
 
+// Corner k of a box or blade in simulation coordinates: a blade's corners on the min side of its
+// height axis (the cutting edge) move to the mid-plane of its thickness axis.
+fn corner_pos(s: Shape, k: u32) -> vec3<f32> {
+    var p = vec3<f32>(
+        select(s.a.x, s.b.x, (k & 1u) != 0u),
+        select(s.a.y, s.b.y, (k & 2u) != 0u),
+        select(s.a.z, s.b.z, (k & 4u) != 0u),
+    );
+    if (s.kind.x == 2u && (k & (1u << s.kind.z)) == 0u) {
+        let t = s.kind.y;
+        p[t] = 0.5 * (s.a[t] + s.b[t]);
+    }
+    return p;
+}
+
 @vertex
 fn vs_shape(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> ShapeOut {
     let s = shapes[ii];
@@ -73,16 +90,19 @@ fn vs_shape(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) ->
         }
         return o;
     }
-    let k = box_corner(vi);
-    let p = vec3<f32>(
-        select(s.a.x, s.b.x, (k & 1u) != 0u),
-        select(s.a.y, s.b.y, (k & 2u) != 0u),
-        select(s.a.z, s.b.z, (k & 4u) != 0u),
-    );
+    let p = corner_pos(s, box_corner(vi));
     let v = cam.view * vec4<f32>(p, 1.0);
     o.clip = cam.proj * v;
     o.view_pos = v.xyz;
-    o.normal = (cam.view * vec4<f32>(box_normal(vi / 6u), 0.0)).xyz;
+    // flat normal of this vertex's triangle (a wedge's faces are not the box's)
+    let tri = 3u * (vi / 3u);
+    let p0 = corner_pos(s, box_corner(tri));
+    let e = cross(corner_pos(s, box_corner(tri + 1u)) - p0, corner_pos(s, box_corner(tri + 2u)) - p0);
+    var n = box_normal(vi / 6u);
+    if (dot(e, e) > 1e-30) {
+        n = normalize(e);
+    }
+    o.normal = (cam.view * vec4<f32>(n, 0.0)).xyz;
     o.centre_view = vec3<f32>(0.0);
     o.radius = 0.0;
     return o;

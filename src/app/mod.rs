@@ -190,6 +190,8 @@ impl App {
             current: self.opts.scenario_path.clone(),
             show_help: false,
             gravity_on: true,
+            gravity_scale: 1.0,
+            tool_speed: 1.0,
             tools_available: Vec::new(),
             selected_tool: None,
             last_screenshot: None,
@@ -494,6 +496,13 @@ impl Gfx {
         false
     }
 
+    /// The scenario's gravity × the live scale, or none when switched off.
+    fn send_gravity(&self) {
+        let k = if self.ui.gravity_on { self.ui.gravity_scale } else { 0.0 };
+        let g = self.scenario.gravity.map(|x| x * k);
+        self.send(Control::Sim(Command::SetGravity(g)));
+    }
+
     fn act(&mut self, a: ui::UiAction) {
         match a {
             ui::UiAction::Pause(p) => self.send(Control::Pause(p)),
@@ -501,6 +510,7 @@ impl Gfx {
             ui::UiAction::Reset => {
                 self.send(Control::Reset);
                 self.ui.gravity_on = true;
+                self.ui.gravity_scale = 1.0;
             }
             ui::UiAction::Load(p) => match Scenario::load(&p) {
                 Ok(s) => {
@@ -509,6 +519,7 @@ impl Gfx {
                     self.ui.selected_tool = None;
                     self.tools.selected = None;
                     self.ui.gravity_on = true;
+                    self.ui.gravity_scale = 1.0;
                     self.scenario = s.clone();
                     self.window.set_title(&format!("Perfuse — {}", s.name));
                     self.send(Control::Load(Box::new(s)));
@@ -521,8 +532,11 @@ impl Gfx {
             }
             ui::UiAction::Gravity(on) => {
                 self.ui.gravity_on = on;
-                let g = if on { self.scenario.gravity } else { [0.0; 3] };
-                self.send(Control::Sim(Command::SetGravity(g)));
+                self.send_gravity();
+            }
+            ui::UiAction::GravityScale(k) => {
+                self.ui.gravity_scale = k.clamp(0.0, 2.0);
+                self.send_gravity();
             }
             ui::UiAction::Screenshot => {
                 let dir = PathBuf::from("screenshots");
@@ -579,6 +593,7 @@ impl Gfx {
             actions = ui::panels(ui, ui_state, &status, &stats, &mut settings);
         });
         self.renderer.settings = settings;
+        self.tools.speed_scale = self.ui.tool_speed;
         for a in actions {
             self.act(a);
         }

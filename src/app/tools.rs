@@ -19,11 +19,13 @@ pub struct ToolInput {
     last_target: Option<Vec3>,
     /// Whether the selected tool is engaged (left button down).
     pub dragging: bool,
+    /// Tool speed as a fraction of the tool's `max_speed` (the live "tool speed" slider), 0.05 … 1.
+    pub speed_scale: f64,
 }
 
 impl Default for ToolInput {
     fn default() -> Self {
-        ToolInput { selected: None, height: 0.0, last_target: None, dragging: false }
+        ToolInput { selected: None, height: 0.0, last_target: None, dragging: false, speed_scale: 1.0 }
     }
 }
 
@@ -87,11 +89,13 @@ impl ToolInput {
             .or_else(|| OrbitCamera::ray_plane(o, d, camera.target, camera.forward()))
     }
 
-    /// The selected tool's kind, object index, half extents and speed, if the scenario has it.
+    /// The selected tool's kind, object index, half extents and speed (its `max_speed` times the
+    /// speed slider, never above `max_speed`), if the scenario has it.
     fn selected_tool(&self, scene: &ToolScene) -> Option<(ToolKind, usize, Vec3, f64)> {
         let kind = self.selected?;
         let (object, pose) = scene.object_of(kind)?;
-        Some((kind, object, ToolScene::half_extent(pose), pose.tool.as_ref().map_or(0.1, |t| t.max_speed)))
+        let max = pose.tool.as_ref().map_or(0.1, |t| t.max_speed);
+        Some((kind, object, ToolScene::half_extent(pose), max * self.speed_scale.clamp(0.05, 1.0)))
     }
 
     /// The tool centre under the cursor on the working plane, kept inside the domain.
@@ -211,5 +215,36 @@ mod tests {
         // starting inside: the start itself
         let q = entry_point(Vec3::splat(0.5), Vec3::X, Vec3::ZERO, Vec3::ONE).expect("inside");
         assert!((q - Vec3::splat(0.5)).length() < 1e-6);
+    }
+
+    /// The live "tool speed" slider scales the tool's speed, never above its `max_speed` nor below 5 %.
+    #[test]
+    fn tool_speed_is_a_fraction_of_the_maximum() {
+        let pose = ObjectPose {
+            name: "scalpel".into(),
+            shape: Region::Box { min: [0.0; 3], max: [0.001, 0.01, 0.02] },
+            centre: [0.0005, 0.005, 0.01],
+            velocity: [0.0; 3],
+            tool: Some(crate::scenario::Tool { kind: ToolKind::Scalpel, max_speed: 0.2 }),
+        };
+        let objects = [pose];
+        let scene = ToolScene {
+            objects: &objects,
+            origin: [0.0; 3],
+            up: Vec3::Y,
+            top: 0.0,
+            domain_min: Vec3::splat(-1.0),
+            domain_max: Vec3::splat(1.0),
+            dx: 0.001,
+        };
+        let mut input = ToolInput { selected: Some(ToolKind::Scalpel), ..Default::default() };
+        let speed = |input: &ToolInput| input.selected_tool(&scene).map(|t| t.3);
+        assert_eq!(speed(&input), Some(0.2));
+        input.speed_scale = 0.25;
+        assert_eq!(speed(&input), Some(0.05));
+        input.speed_scale = 3.0;
+        assert_eq!(speed(&input), Some(0.2));
+        input.speed_scale = 0.0;
+        assert!(speed(&input).is_some_and(|v| (v - 0.01).abs() < 1e-12));
     }
 }

@@ -16,7 +16,9 @@ pub enum UiAction {
     Reset,
     Load(PathBuf),
     SelectTool(Option<ToolKind>),
+    /// Gravity on/off and its scale (× the scenario's gravity).
     Gravity(bool),
+    GravityScale(f64),
     Screenshot,
     ResetCamera,
     /// Start (true) or finish (false) recording the live session.
@@ -49,6 +51,10 @@ pub struct UiState {
     pub current: PathBuf,
     pub show_help: bool,
     pub gravity_on: bool,
+    /// Gravity as a multiple of the scenario's (live parameter, 0 … 2).
+    pub gravity_scale: f64,
+    /// Tool speed as a fraction of the tool's maximum speed (live parameter, 0.05 … 1).
+    pub tool_speed: f64,
     pub tools_available: Vec<ToolKind>,
     pub selected_tool: Option<ToolKind>,
     pub last_screenshot: Option<String>,
@@ -194,6 +200,16 @@ pub fn panels(
             if ui.checkbox(&mut g, "gravity").changed() {
                 actions.push(UiAction::Gravity(g));
             }
+            let mut scale = state.gravity_scale;
+            let resp = ui.add_enabled(
+                state.gravity_on && status.replay.is_none(),
+                egui::Slider::new(&mut scale, 0.0..=2.0).text("gravity × scenario"),
+            );
+            if resp.changed() {
+                actions.push(UiAction::GravityScale(scale));
+            }
+            ui.add(egui::Slider::new(&mut state.tool_speed, 0.05..=1.0).text("tool speed × max"))
+                .on_hover_text("the speed a dragged tool follows the cursor at, and the projectile's speed");
             ui.separator();
 
             if let Some(v) = &status.vitals {

@@ -83,6 +83,30 @@ pub enum RenderError {
     BadSize { width: u32, height: u32, limit: u32 },
 }
 
+/// A scalpel drawn as a tool rather than as its collision box: the box (the simulated blade) as a
+/// steel wedge whose cutting edge is the bottom of its height axis (scenarios have "up" along +y or
+/// +z), and a dark handle on its spine — drawn only, not simulated. Axes from the box's extents:
+/// thickness the smallest, length the largest, height the other.
+fn scalpel_shapes(a: [f32; 4], b: [f32; 4]) -> (ShapeGpu, Option<ShapeGpu>) {
+    let ext = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let by = |cmp: fn(f32, f32) -> bool| (0..3).fold(0, |k, i| if cmp(ext[i], ext[k]) { i } else { k });
+    let (t, l) = (by(|x, y| x < y), by(|x, y| x > y));
+    let steel = [0.78, 0.8, 0.84, 1.0];
+    if t == l {
+        // a cube: no blade to speak of
+        return (ShapeGpu { a, b, colour: steel, kind: [0; 4] }, None);
+    }
+    let h = 3 - t - l;
+    let blade = ShapeGpu { a, b, colour: steel, kind: [2, t as u32, h as u32, 0] };
+    let (mut ha, mut hb) = (a, b);
+    let mid = 0.5 * (a[t] + b[t]);
+    (ha[t], hb[t]) = (mid - 1.5 * ext[t], mid + 1.5 * ext[t]);
+    (ha[h], hb[h]) = (b[h], b[h] + 0.6 * ext[h]);
+    (ha[l], hb[l]) = (a[l] + 0.05 * ext[l], b[l] - 0.05 * ext[l]);
+    let handle = ShapeGpu { a: ha, b: hb, colour: [0.07, 0.08, 0.09, 1.0], kind: [0; 4] };
+    (blade, Some(handle))
+}
+
 /// Size-dependent textures and their bind groups.
 struct Targets {
     size: (u32, u32),
@@ -514,7 +538,13 @@ impl Renderer {
                 continue;
             }
             let colour = if tool { [0.62, 0.64, 0.68, 1.0] } else { [0.55, 0.58, 0.62, 0.35] };
+            let scalpel = pose.tool.as_ref().is_some_and(|t| t.kind == crate::scenario::ToolKind::Scalpel);
             let shape = match &pose.shape {
+                Region::Box { min, max } if scalpel => {
+                    let (blade, handle) = scalpel_shapes(sim(*min), sim(*max));
+                    opaque.extend(handle);
+                    blade
+                }
                 Region::Box { min, max } => ShapeGpu { a: sim(*min), b: sim(*max), colour, kind: [0; 4] },
                 Region::Sphere { centre, radius } => {
                     ShapeGpu { a: sim(*centre), b: [*radius as f32, 0.0, 0.0, 0.0], colour, kind: [1, 0, 0, 0] }
@@ -705,5 +735,26 @@ impl Renderer {
     /// thickness (R16Float) — for tests of the screen-space fluid passes.
     pub fn fluid_textures(&self) -> Option<(&wgpu::Texture, &wgpu::Texture)> {
         self.targets.as_ref().map(|t| (&t.fluid_a_tex, &t.thickness_tex))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The liver's scalpel box (x thin, y tall, z long): a wedge thin along x with its edge at the
+    /// bottom of y, and a handle on the spine (above the box's top, three blade-thicknesses wide);
+    /// a cube gets no handle.
+    #[test]
+    fn scalpel_box_becomes_a_blade_and_a_handle() {
+        let (a, b) = ([-0.09, 0.075, -0.045, 0.0], [-0.0825, 0.105, 0.045, 0.0]);
+        let (blade, handle) = scalpel_shapes(a, b);
+        assert_eq!((blade.a, blade.b, blade.kind), (a, b, [2, 0, 1, 0]));
+        let h = handle.expect("handle");
+        assert_eq!(h.a[1], b[1]);
+        assert!((h.b[1] - (b[1] + 0.6 * 0.03)).abs() < 1e-6);
+        assert!(((h.b[0] - h.a[0]) - 3.0 * 0.0075).abs() < 1e-6);
+        assert!(h.a[2] > a[2] && h.b[2] < b[2] && h.kind[0] == 0);
+        assert!(scalpel_shapes([0.0; 4], [1.0, 1.0, 1.0, 0.0]).1.is_none());
     }
 }
