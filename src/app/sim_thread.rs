@@ -346,9 +346,16 @@ impl Runner {
     /// (the recording replays from it).
     fn start_recording(&mut self, path: std::path::PathBuf) {
         let adapter = self.adapter();
-        let Some(Mode::Live(rs)) = &mut self.sim else {
-            lock(&self.shared.status).error = Some("recording: take over the replay first".into());
-            return;
+        let rs = match &mut self.sim {
+            Some(Mode::Live(rs)) => rs,
+            Some(Mode::Replay(_)) => {
+                lock(&self.shared.status).error = Some("recording: take over the replay first (T)".into());
+                return;
+            }
+            None => {
+                lock(&self.shared.status).error = Some("recording: no simulation is running".into());
+                return;
+            }
         };
         if rs.recorder.is_some() {
             return;
