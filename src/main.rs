@@ -18,6 +18,16 @@ struct Cli {
     /// Viewer: where the simulation runs (auto: the GPU when it is a hardware one, else the CPU).
     #[arg(long, value_enum, default_value = "auto")]
     backend: Backend,
+    #[command(flatten)]
+    window: WindowArgs,
+    /// Viewer: record the session to this file (replay with `perfuse replay FILE --verify`).
+    #[arg(long)]
+    record: Option<PathBuf>,
+}
+
+/// The viewer's window options (the viewer on a scenario, and `perfuse replay`).
+#[derive(clap::Args, Clone, Debug)]
+struct WindowArgs {
     /// Viewer: quit after this many frames.
     #[arg(long)]
     frames: Option<u64>,
@@ -30,9 +40,6 @@ struct Cli {
     /// Viewer: start paused.
     #[arg(long)]
     paused: bool,
-    /// Viewer: record the session to this file (replay with `perfuse replay FILE --verify`).
-    #[arg(long)]
-    record: Option<PathBuf>,
 }
 
 /// The scenario `cargo run --release` opens.
@@ -180,18 +187,8 @@ enum Cmd {
         /// Back-end (default: the one that recorded it; bit-identical only there).
         #[arg(long, value_enum)]
         backend: Option<Backend>,
-        /// Viewer: quit after this many frames.
-        #[arg(long)]
-        frames: Option<u64>,
-        /// Viewer: save the last frame to this PNG.
-        #[arg(long)]
-        screenshot: Option<PathBuf>,
-        /// Viewer: window size, WIDTHxHEIGHT.
-        #[arg(long, default_value = "1280x800")]
-        size: String,
-        /// Viewer: start paused.
-        #[arg(long)]
-        paused: bool,
+        #[command(flatten)]
+        window: WindowArgs,
         /// Export the replay to ParaView: DIR/frame_NNNNN.vtu and DIR/frames.pvd.
         #[arg(long, value_name = "DIR")]
         vtk: Option<PathBuf>,
@@ -400,19 +397,32 @@ fn viewer(cli: &Cli) -> Result<()> {
         Backend::Cpu => Some(false),
         Backend::Gpu => Some(true),
     };
-    if cli.frames == Some(0) {
+    open_viewer(scenario, path, gpu_simulation, &cli.window, cli.record.clone(), None)
+}
+
+/// Opens the viewer (live on `scenario`, or replaying `replay`) with the window options, then prints
+/// what it reports.
+fn open_viewer(
+    scenario: Scenario,
+    scenario_path: PathBuf,
+    gpu_simulation: Option<bool>,
+    window: &WindowArgs,
+    record: Option<PathBuf>,
+    replay: Option<perfuse::replay::format::Recording>,
+) -> Result<()> {
+    if window.frames == Some(0) {
         bail!("--frames must be at least 1");
     }
     let opts = perfuse::app::ViewerOptions {
         scenario,
-        scenario_path: path,
+        scenario_path,
         gpu_simulation,
-        frames: cli.frames,
-        screenshot: cli.screenshot.clone(),
-        size: parse_size(&cli.size)?,
-        paused: cli.paused,
-        record: cli.record.clone(),
-        replay: None,
+        frames: window.frames,
+        screenshot: window.screenshot.clone(),
+        size: parse_size(&window.size)?,
+        paused: window.paused,
+        record,
+        replay,
     };
     let report = perfuse::app::run(opts)?;
     println!(
@@ -465,7 +475,7 @@ fn real_main() -> Result<()> {
             );
             Ok(())
         }
-        Cmd::Replay { file, verify, headless, seek, backend, frames, screenshot, size, paused, vtk, every } => {
+        Cmd::Replay { file, verify, headless, seek, backend, window, vtk, every } => {
             use perfuse::replay::{format::read_recording_file, session};
             // Checked before the (possibly long) read and replay.
             if let Some(dt) = every
@@ -504,31 +514,9 @@ fn real_main() -> Result<()> {
                 bail!("--seek {t}: give a finite time in seconds");
             }
             if !(verify || headless || seek.is_some() || vtk.is_some()) {
-                if frames == Some(0) {
-                    bail!("--frames must be at least 1");
-                }
                 let scenario = session::recorded_scenario(&rec)?;
-                let opts = perfuse::app::ViewerOptions {
-                    scenario,
-                    scenario_path: file.clone(),
-                    gpu_simulation: Some(backend == BackendKind::Gpu),
-                    frames,
-                    screenshot,
-                    size: parse_size(&size)?,
-                    paused,
-                    record: None,
-                    replay: Some(rec),
-                };
-                let report = perfuse::app::run(opts)?;
-                println!("viewer: {} frames; simulation {} steps", report.frames, report.sim_steps);
-                print_session(report.session.as_ref());
-                if let Some(p) = &report.screenshot {
-                    if !p.exists() {
-                        bail!("the screenshot {} was not written", p.display());
-                    }
-                    println!("screenshot: {}", p.display());
-                }
-                return Ok(());
+                let gpu = Some(backend == BackendKind::Gpu);
+                return open_viewer(scenario, file.clone(), gpu, &window, None, Some(rec));
             }
             let out = if let Some(dir) = &vtk {
                 if seek.is_some() {

@@ -198,10 +198,7 @@ struct Runner {
 
 impl Runner {
     fn simulation(&self) -> Option<&Simulation> {
-        match self.sim.as_ref()? {
-            Mode::Live(rs) => Some(&rs.sim),
-            Mode::Replay(p) => Some(p.simulation()),
-        }
+        self.sim.as_ref().map(Self::sim_of)
     }
 
     fn adapter(&self) -> String {

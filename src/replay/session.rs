@@ -391,15 +391,24 @@ impl Player {
     /// or the recording's end; returns the steps taken (0 at the end).
     pub fn step_forward(&mut self, max_steps: u32) -> Result<u64, SessionError> {
         self.process_due()?;
+        let taken = self.advance_within(u64::from(max_steps), u64::MAX, f64::INFINITY)?;
+        if taken > 0 {
+            self.process_due()?;
+        }
+        Ok(taken)
+    }
+
+    /// Takes up to `max_steps` steps, stopping after the first whose end time reaches `t_end`, never
+    /// past the next chunk's step, `until` or the recording's end; returns the steps taken (0 when
+    /// there is nothing to take). The one place the player steps the simulation.
+    fn advance_within(&mut self, max_steps: u64, until: u64, t_end: f64) -> Result<u64, SessionError> {
         let now = self.sim.stats().steps;
-        let limit = self.rec.chunks.get(self.next).map_or(self.end().0, |c| c.step);
-        let n = limit.saturating_sub(now).min(u64::from(max_steps)) as u32;
+        let limit = self.rec.chunks.get(self.next).map_or(self.end().0, |c| c.step).min(until);
+        let n = limit.saturating_sub(now).min(max_steps) as u32;
         if n == 0 {
             return Ok(0);
         }
-        let adv = self.sim.advance(n, f64::INFINITY).map_err(|e| sim_err(&self.rec, now, e))?;
-        self.process_due()?;
-        Ok(adv.steps)
+        Ok(self.sim.advance(n, t_end).map_err(|e| sim_err(&self.rec, now, e))?.steps)
     }
 
     /// Plays from the current position to `step` (or the recording's end), acting on every chunk
@@ -407,14 +416,10 @@ impl Player {
     pub fn play_to_step(&mut self, step: u64) -> Result<(), SessionError> {
         loop {
             self.process_due()?;
-            let now = self.sim.stats().steps;
-            if now >= step || self.at_end() {
+            if self.sim.stats().steps >= step || self.at_end() {
                 return Ok(());
             }
-            let limit = self.rec.chunks.get(self.next).map_or(self.end().0, |c| c.step).min(step);
-            let n = limit.saturating_sub(now).min(u64::from(crate::sim::ADVANCE_CHUNK)) as u32;
-            let adv = self.sim.advance(n.max(1), f64::INFINITY).map_err(|e| sim_err(&self.rec, now, e))?;
-            if adv.steps == 0 {
+            if self.advance_within(u64::from(crate::sim::ADVANCE_CHUNK), step, f64::INFINITY)? == 0 {
                 return Ok(());
             }
         }
@@ -435,14 +440,7 @@ impl Player {
         }
         while self.sim.time() < t && !self.at_end() {
             self.process_due()?;
-            let now = self.sim.stats().steps;
-            let limit = self.rec.chunks.get(self.next).map_or(self.end().0, |c| c.step);
-            let n = limit.saturating_sub(now).min(u64::from(crate::sim::ADVANCE_CHUNK)) as u32;
-            if n == 0 {
-                break;
-            }
-            let adv = self.sim.advance(n, t).map_err(|e| sim_err(&self.rec, now, e))?;
-            if adv.steps == 0 {
+            if self.advance_within(u64::from(crate::sim::ADVANCE_CHUNK), u64::MAX, t)? == 0 {
                 break;
             }
         }

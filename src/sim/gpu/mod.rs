@@ -552,6 +552,24 @@ impl GpuSolver {
         Ok(())
     }
 
+    /// Writes the boundary particles' rest positions (and objects) from the host's copy.
+    fn upload_boundary_pos0(&self) -> Result<(), GpuError> {
+        let p0: Vec<[f32; 4]> =
+            self.boundary_x0.iter().zip(&self.boundary_object).map(|(x, o)| v4(*x, f32::from_bits(*o))).collect();
+        if !p0.is_empty() {
+            self.ctx.queue.write_buffer(self.buffer(Slot::BoundaryPos0)?, 0, bytemuck::cast_slice(&p0));
+        }
+        Ok(())
+    }
+
+    /// Writes the host's live liquid count into the liquid grid set's uniform.
+    fn upload_liquid_grid_count(&self) {
+        let gs = GridSet { n: self.counts.liquid, cells: self.cells, _pad0: 0, _pad1: 0 };
+        if let Some(b) = self.buffers.get(Slot::GridSet, Some(GridOf::Liquid)) {
+            self.ctx.queue.write_buffer(b, 0, bytemuck::bytes_of(&gs));
+        }
+    }
+
     /// Sets the GPU clock (the f32 pair of batch.wgsl) to `clock`.
     fn upload_clock(&mut self, clock: [f32; 2]) -> Result<(), GpuError> {
         self.clock = clock;
@@ -847,10 +865,7 @@ impl GpuSolver {
         if self.emit_active {
             // the live count of the restored state (the host's, as of the batch start)
             self.upload_params()?;
-            let gs = GridSet { n: self.counts.liquid, cells: self.cells, _pad0: 0, _pad1: 0 };
-            if let Some(b) = self.buffers.get(Slot::GridSet, Some(GridOf::Liquid)) {
-                self.ctx.queue.write_buffer(b, 0, bytemuck::bytes_of(&gs));
-            }
+            self.upload_liquid_grid_count();
         }
         self.run_stages(passes::PLACE_AND_BIN)
     }
@@ -917,15 +932,8 @@ impl GpuSolver {
         (self.emitted, self.sunk, self.capacity_hit) = (snap.emitted, snap.sunk, snap.capacity_hit);
         self.upload_clock(snap.clock)?;
         self.upload_params()?;
-        let gs = GridSet { n: self.counts.liquid, cells: self.cells, _pad0: 0, _pad1: 0 };
-        if let Some(b) = self.buffers.get(Slot::GridSet, Some(GridOf::Liquid)) {
-            self.ctx.queue.write_buffer(b, 0, bytemuck::bytes_of(&gs));
-        }
-        let p0: Vec<[f32; 4]> =
-            self.boundary_x0.iter().zip(&self.boundary_object).map(|(x, o)| v4(*x, f32::from_bits(*o))).collect();
-        if !p0.is_empty() {
-            self.ctx.queue.write_buffer(self.buffer(Slot::BoundaryPos0)?, 0, bytemuck::cast_slice(&p0));
-        }
+        self.upload_liquid_grid_count();
+        self.upload_boundary_pos0()?;
         self.upload_motions()?;
         self.run_stages(passes::PLACE_AND_BIN)?;
         Ok(())
@@ -951,11 +959,7 @@ impl GpuSolver {
         if self.shapes[object].kind == 0 {
             self.shapes[object].b += shift;
         }
-        let p0: Vec<[f32; 4]> =
-            self.boundary_x0.iter().zip(&self.boundary_object).map(|(x, o)| v4(*x, f32::from_bits(*o))).collect();
-        if !p0.is_empty() {
-            self.ctx.queue.write_buffer(self.buffer(Slot::BoundaryPos0)?, 0, bytemuck::cast_slice(&p0));
-        }
+        self.upload_boundary_pos0()?;
         self.upload_objects(self.t)?;
         self.upload_motions()?;
         self.run_stages(passes::PLACE_AND_BIN)?;
