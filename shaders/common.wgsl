@@ -83,7 +83,13 @@ struct SimParams {
     has_solid: u32,
     // liquid pressure-gradient normalisation κ_S (1 when disabled)
     kappa_s: f32,
+    // γ of (3.4) [N/m]; 0: off
+    wicking: f32,
+    // s_ll, s_lb of (3.3) [N]; 0: off
+    cohesion_ll: f32,
+    cohesion_lb: f32,
     _pad0: u32,
+    _pad1: u32,
 }
 
 // Mirrors `StepState`: the GPU-resident Δt (SPEC §5.3) and the step status bitmask (STYLE §5.4).
@@ -253,6 +259,7 @@ const LIMIT_MAX: u32 = 4u;
 const LIMIT_FIXED: u32 = 5u;
 
 const NO_SLIP_BETA_MAX: f32 = 1.5;
+const PI: f32 = 3.14159265358979;
 const JACOBI_SWEEPS: u32 = 6u;
 
 // ---- resources (bindings.rs `Slot`) ----

@@ -69,6 +69,23 @@ fn liquid_from_boundary(rho: f32, pr: f32, n_l: f32, vi: vec3<f32>, m_b: f32, vb
     return a;
 }
 
+// Pair factor of the liquid–void attraction (3.4) (forces.rs `wicking_pair`, SPEC §3.12, D-22).
+fn wicking_pair(h_x: f32, ns_j: f32, nl_j: f32, r: f32) -> f32 {
+    let w = max(1.0 - ns_j - nl_j, 0.0);
+    if (r <= 0.0 || r >= 2.0 * h_x) {
+        return 0.0;
+    }
+    return w * (params.wicking / (h_x * h_x)) * cos(PI * r / (4.0 * h_x));
+}
+
+// Pair force [N] of the surface tension (3.3) (forces.rs `cohesion_pair`).
+fn cohesion_pair(s: f32, radius: f32, r: f32) -> f32 {
+    if (r <= 0.0 || r >= radius) {
+        return 0.0;
+    }
+    return s * cos(PI * r / (2.0 * radius));
+}
+
 fn liquid_gravity() -> vec3<f32> {
     return select(vec3<f32>(0.0), params.gravity.xyz, params.gravity.w != 0.0);
 }
@@ -90,6 +107,7 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let n_s = di.z;
     let pr = di.w;
     let pi = pr / (rho * rho);
+    let inv_m = 1.0 / liquid_pos[i].w;
     let ci = cell_coords(xi);
     let kb = nbr_begin();
     let ke = nbr_end();
@@ -112,6 +130,10 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let pj = dj.w / (dj.x * dj.x);
                 a += grad * (-n_l * mj * (pi + pj) * params.kappa_s);
                 a += (vj - vi) * (params.kappa_v * params.eta / rho * (mj / dj.x) * lap_viscosity(kl, r));
+                if (params.cohesion_ll > 0.0 && r > 0.0) {
+                    // surface tension (3.3): pair force toward j
+                    a -= xij * (cohesion_pair(params.cohesion_ll, kl.r, r) * inv_m / r);
+                }
                 if (params.switches.y != 0u) {
                     let pij = artificial_viscosity(vi - vj, xij, r, kl.h, params.c_l, 0.5 * (rho + dj.x));
                     a -= grad * (mj * pij);
@@ -131,7 +153,12 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let obj = bitcast<u32>(boundary_pos0[j].w);
                 let slip = no_slip_factor(obj, xi, pb.xyz);
                 let o = objects[obj];
-                a += liquid_from_boundary(rho, pr, n_l, vi, pb.w, boundary_vel[j].xyz, xij, sqrt(r2), o.density, o.pressure, slip, g);
+                let r = sqrt(r2);
+                a += liquid_from_boundary(rho, pr, n_l, vi, pb.w, boundary_vel[j].xyz, xij, r, o.density, o.pressure, slip, g);
+                if (params.cohesion_lb > 0.0 && r > 0.0) {
+                    // adhesion (3.3) to walls and plates
+                    a -= xij * (cohesion_pair(params.cohesion_lb, kl.r, r) * inv_m / r);
+                }
             }
         }
     }
@@ -152,10 +179,14 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if (r < kl.r && (solid_flags[j] & SOLID_MEMBRANE) != 0u) {
                     a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xij, r, -1.0, 0.0, 1.0, g);
                 }
+                let dj = solid_dens[j];
                 if (params.kbar > 0.0) {
-                    let dj = solid_dens[j];
                     let kf = friction_coefficient(n_s, dj.z);
                     f += (vi - vj.xyz) * (pj4.w / dj.x * kf * w_poly6(kx, r));
+                }
+                if (params.wicking > 0.0 && r > 0.0) {
+                    // liquid–void attraction (3.4) toward unsaturated solid, per unit volume ÷ ρ_i
+                    a -= xij * (wicking_pair(kx.h, dj.z, dj.y, r) / (rho * r));
                 }
             }
         }
@@ -260,10 +291,12 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    // friction reaction (2.17, D-18)
-    if (params.kbar > 0.0) {
+    // friction reaction (2.17, D-18) and reaction of the liquid–void attraction (3.4): −(m_j/ρ_j) × the
+    // pair term on liquid j (§3.12), in one walk over the liquid within R_×
+    if (params.kbar > 0.0 || params.wicking > 0.0) {
         let r2x = kx.r * kx.r;
         var f = vec3<f32>(0.0);
+        var fw = vec3<f32>(0.0);
         for (var k = kb; k < ke; k++) {
             let c = nbr_cell(ci, k);
             if (c < 0) { continue; }
@@ -274,12 +307,19 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let r2 = dot3(xij, xij);
                 if (r2 < r2x) {
                     let dj = liquid_dens[j];
-                    let kf = friction_coefficient(n_s, dj.z);
-                    f += (vi - liquid_vel[j].xyz) * (pj4.w / dj.x * kf * w_poly6(kx, sqrt(r2)));
+                    let r = sqrt(r2);
+                    if (params.kbar > 0.0) {
+                        let kf = friction_coefficient(n_s, dj.z);
+                        f += (vi - liquid_vel[j].xyz) * (pj4.w / dj.x * kf * w_poly6(kx, r));
+                    }
+                    if (params.wicking > 0.0 && r > 0.0) {
+                        fw -= xij * (pj4.w / dj.x * wicking_pair(kx.h, n_s, di.y, r) / r);
+                    }
                 }
             }
         }
         a -= f / rho;
+        a += fw / pi4.w;
     }
     // membrane particles take the reaction of the liquid–membrane boundary forces (§4.1)
     if ((solid_flags[i] & SOLID_MEMBRANE) != 0u) {

@@ -314,3 +314,40 @@ fn emitter_and_sink_errors() {
         &["sinks[0].region.radius"],
     );
 }
+
+/// Surface-tension inputs (SPEC §3.12): contradictory C₁, an impossible equilibrium fraction, a negative
+/// strength, a sheet off the domain.
+#[test]
+fn surface_tension_inputs() {
+    let liquid = "sound_speed: Some(0.6))";
+    expect(
+        &edit(
+            liquid,
+            "sound_speed: Some(0.6), c1: 1.0, c1_from_equilibrium: Some(Equilibrium(solid_fraction: 0.3, liquid_fraction: 0.5)))",
+        ),
+        &["liquid.c1_from_equilibrium", "keep only one"],
+    );
+    expect(
+        &edit(
+            liquid,
+            "sound_speed: Some(0.6), c1_from_equilibrium: Some(Equilibrium(solid_fraction: 0.3, liquid_fraction: 0.8)))",
+        ),
+        &["liquid.c1_from_equilibrium.liquid_fraction"],
+    );
+    expect(&edit(liquid, "sound_speed: Some(0.6), wicking: -0.07)"), &["liquid.wicking", "N/m"]);
+    expect(
+        &edit(liquid, "sound_speed: Some(0.6), cohesion: Some(Cohesion(liquid: 1e-6, boundary: -1.0)))"),
+        &["liquid.cohesion.boundary"],
+    );
+    let sheet = edit(
+        "particles: [ Box(phase: Liquid, min: (0.0, -0.01, 0.0), max: (0.01, 0.01, 0.0), fraction: 1.0) ],",
+        "particles: [ Box(phase: Liquid, min: (0.0, -0.01, 0.0), max: (0.01, 0.01, 0.0), fraction: 1.0),
+                      Sheet(centre: (0.02, 0.0, 0.0), size: (0.01, 0.0), fraction: 0.3) ],
+         solid: Some(Solid(density: 1000.0, c10: 1e3, c01: 0.0, k_s: 1e4, n_sat: 0.3, k_sat: 0.0)),",
+    )
+    .replace(
+        "numerics: Numerics(dx_liquid: Some(5.0e-4),",
+        "numerics: Numerics(dx_liquid: Some(5.0e-4), dx_solid: Some(5.0e-4),",
+    );
+    expect(&sheet, &["particles[1].centre", "outside the domain"]);
+}

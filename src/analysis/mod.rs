@@ -1,5 +1,6 @@
 //! Analysis of simulations: analytic references (`analytic`), the validation cases of SPEC.md §7 with
-//! their report and plots (`validate`), and PNG charts (`plot`).
+//! their report and plots (`validate`), PNG charts (`plot`), and the wetting measurements of the
+//! surface-tension cases (`wetting`).
 
 pub mod analytic;
 pub mod dmd;
@@ -7,3 +8,4 @@ pub mod hemorrhage;
 pub mod plot;
 pub mod session;
 pub mod validate;
+pub mod wetting;

@@ -145,6 +145,28 @@ pub fn lattice_points(region: &Region, dx: f64, d: usize) -> Vec<V3> {
     out
 }
 
+/// Cell-centred points of a sheet generator (see `Generator::Sheet`), x fastest.
+pub fn sheet_points(centre: V3, size: (f64, f64), dx: f64, d: usize) -> Vec<V3> {
+    let (min, max) = if d == 3 {
+        (
+            [centre[0] - 0.5 * size.0, centre[1] - 0.5 * size.1, 0.0],
+            [centre[0] + 0.5 * size.0, centre[1] + 0.5 * size.1, 0.0],
+        )
+    } else {
+        ([centre[0] - 0.5 * size.0, 0.0, 0.0], [centre[0] + 0.5 * size.0, 0.0, 0.0])
+    };
+    let plane = d - 1;
+    let mut out = lattice_points(&Region::Box { min, max }, dx, plane);
+    for p in &mut out {
+        if d == 3 {
+            p[2] = centre[2];
+        } else {
+            p[1] = centre[1];
+        }
+    }
+    out
+}
+
 /// First clamped–free bending mode shape φ(x) with βL = 1.8751041 (SPEC §7.2), φ(L) = 2.
 pub fn cantilever_mode(x: f64, length: f64) -> f64 {
     let bl = 1.875_104_1_f64;
@@ -189,6 +211,7 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
                 g.fraction_solid = *solid_fraction;
                 g.fraction_liquid = *liquid_fraction;
             }
+            Generator::Sheet { fraction, .. } => g.fraction_solid = *fraction,
         }
     }
     // Without liquid generators the emitted liquid sets n₀ (boundary masses depend on it).
@@ -235,6 +258,22 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
                 let r = Region::Box { min: *min, max: *max };
                 push(Phase::Solid, &r, &None, &mut g);
                 push(Phase::Liquid, &r, &None, &mut g);
+            }
+            Generator::Sheet { centre, size, fraction } => {
+                // A sheet's particles stand for the fabric's thickness: the mass follows the in-plane
+                // lattice sum with the cross-phase kernel R_× (SPEC §7.12).
+                let r_x = 2.0 * g.h_liquid.max(g.h_solid);
+                let mass = match &s.solid {
+                    Some(m) if g.dx_solid > 0.0 => {
+                        fraction * m.density / crate::sim::kernels::sheet_poly6_sum(g.dx_solid, r_x, dim)
+                    }
+                    _ => 0.0,
+                };
+                for p in sheet_points(*centre, *size, g.dx_solid, d) {
+                    g.solid.vel.push([0.0; 3]);
+                    g.solid.pos.push(p);
+                    g.solid.mass.push(mass);
+                }
             }
             Generator::PerfusedMesh { file, placement, .. } => {
                 // Validation loaded this mesh already; an error here leaves the generator empty.

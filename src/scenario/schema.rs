@@ -108,9 +108,49 @@ pub struct Liquid {
     /// Numerical sound speed c_l [m/s]; stiffness = ρ₀c² (SPEC D-5).
     #[serde(default)]
     pub sound_speed: Option<f64>,
-    /// C₁ of the wicking pressure (3.5); 0 outside the wicking scenarios.
+    /// C₁ of the wicking pressure (3.5); 0 outside the wicking scenarios. `c1_from_equilibrium` gives it
+    /// from the desired equilibrium liquid fraction instead.
     #[serde(default)]
     pub c1: f64,
+    /// Sets C₁ = (1 − nˢ − nˡ_eq)/(nˢ nˡ_eq) from the equilibrium liquid fraction nˡ_eq of the porous solid
+    /// of fraction nˢ (SPEC §3.4, D-9); give this or `c1`, not both.
+    #[serde(default)]
+    pub c1_from_equilibrium: Option<Equilibrium>,
+    /// Liquid–void attraction strength γ [N/m] of (3.4): pulls the liquid toward unsaturated solid
+    /// (wicking into a fabric, SPEC §3.12). 0: off.
+    #[serde(default)]
+    pub wicking: f64,
+    /// Pairwise surface tension (3.3) (Tartakovsky–Meakin cohesion and adhesion); None: off.
+    #[serde(default)]
+    pub cohesion: Option<Cohesion>,
+}
+
+/// The equilibrium liquid fraction of (3.5): nˡ_eq = (1 − nˢ)/(1 + C₁nˢ).
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Equilibrium {
+    /// Volume fraction nˢ of the porous solid (the fabric's `fraction`).
+    pub solid_fraction: f64,
+    /// Desired liquid fraction nˡ_eq at which the modified liquid pressure (3.5) vanishes.
+    pub liquid_fraction: f64,
+}
+
+impl Equilibrium {
+    /// C₁ = (1 − nˢ − nˡ_eq)/(nˢ nˡ_eq) (SPEC §3.4).
+    pub fn c1(&self) -> f64 {
+        (1.0 - self.solid_fraction - self.liquid_fraction) / (self.solid_fraction * self.liquid_fraction)
+    }
+}
+
+/// Strengths [N] of the pairwise surface-tension force (3.3), s_ij cos(πr/(2R_l)) toward the neighbour.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Cohesion {
+    /// s_ll between two liquid particles (cohesion).
+    pub liquid: f64,
+    /// s_lb between a liquid particle and a wall/plate particle (adhesion); it sets the contact angle.
+    #[serde(default)]
+    pub boundary: f64,
 }
 
 /// Hyperelastic porous solid (tissue skeleton).
@@ -320,6 +360,11 @@ pub enum Generator {
         #[serde(default)]
         velocity: Option<InitialVelocity>,
     },
+    /// A single layer of solid particles (a fabric, SPEC §7.12): in 3-D the square lattice of spacing
+    /// Δx_s on the plane z = centre.z spanning `size` = (x extent, y extent); in 2-D the row on
+    /// y = centre.y spanning size.0. Its particle mass makes a liquid particle on the mid-plane see
+    /// nˢ = `fraction` (m = nˢρ₀ˢ/Σ_sheet W6(·; R_×)); hold it with a `fixed_regions` entry.
+    Sheet { centre: V3, size: (f64, f64), fraction: f64 },
     /// A perfused block: a solid lattice and an interpenetrating liquid lattice filling the same box.
     PerfusedBlock { min: V3, max: V3, solid_fraction: f64, liquid_fraction: f64 },
     /// A perfused organ: both lattices filling a closed surface mesh (Wavefront OBJ or STL; a path

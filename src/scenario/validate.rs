@@ -88,6 +88,34 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
         Check::positive("liquid.density", l.density, "give ρ₀ in kg/m³, e.g. 1000")?;
         Check::non_negative("liquid.viscosity", l.viscosity, "give η in Pa·s, e.g. 0.35")?;
         Check::finite("liquid.c1", l.c1)?;
+        if let Some(eq) = &l.c1_from_equilibrium {
+            if l.c1 != 0.0 {
+                return Err(Check::fail(
+                    "liquid.c1_from_equilibrium",
+                    "both `c1` and `c1_from_equilibrium` are given",
+                    "keep only one of them",
+                ));
+            }
+            Check::range(
+                "liquid.c1_from_equilibrium.solid_fraction",
+                eq.solid_fraction,
+                1e-3,
+                0.999,
+                "nˢ of the porous solid, e.g. 0.3",
+            )?;
+            Check::range(
+                "liquid.c1_from_equilibrium.liquid_fraction",
+                eq.liquid_fraction,
+                1e-3,
+                1.0 - eq.solid_fraction,
+                "nˡ_eq must lie in (0, 1 − nˢ] (C₁ ≥ 0), e.g. 0.5",
+            )?;
+        }
+        Check::non_negative("liquid.wicking", l.wicking, "give γ of (3.4) in N/m, e.g. 0.0728 (water)")?;
+        if let Some(c) = &l.cohesion {
+            Check::non_negative("liquid.cohesion.liquid", c.liquid, "give s_ll of (3.3) in N, e.g. 1e-6")?;
+            Check::non_negative("liquid.cohesion.boundary", c.boundary, "give s_lb of (3.3) in N, e.g. 5e-7")?;
+        }
         match (l.stiffness, l.sound_speed) {
             (Some(_), Some(_)) => {
                 return Err(Check::fail(
@@ -141,6 +169,7 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
                 has_liquid = true;
                 has_solid = true;
             }
+            Generator::Sheet { .. } => has_solid = true,
         }
     }
     if s.particles.is_empty() && s.emitters.is_empty() {
@@ -332,6 +361,27 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
                         + lattice_count(&r, phase_dx(Phase::Liquid, dx_l, dx_s), d),
                     vec![(Phase::Solid, *solid_fraction), (Phase::Liquid, *liquid_fraction)],
                 )
+            }
+            Generator::Sheet { centre, size, fraction } => {
+                Check::vec(&format!("{f}.centre"), *centre)?;
+                Check::positive(&format!("{f}.size.0"), size.0, "give the sheet's x extent in metres")?;
+                if d == 3 {
+                    Check::positive(&format!("{f}.size.1"), size.1, "give the sheet's y extent in metres")?;
+                }
+                Check::range(&format!("{f}.fraction"), *fraction, 1e-3, 1.0, "nˢ is a volume fraction in (0, 1]")?;
+                let pts = super::generate::sheet_points(*centre, *size, phase_dx(Phase::Solid, dx_l, dx_s), d);
+                for (k, p) in pts.iter().enumerate().filter(|(k, _)| *k == 0 || *k == pts.len() - 1) {
+                    for a in 0..d {
+                        if p[a] < s.domain.min[a] || p[a] > s.domain.max[a] {
+                            return Err(Check::fail(
+                                format!("{f}.centre"),
+                                format!("sheet particle {k} at {p:?} lies outside the domain"),
+                                "move or shrink the sheet, or enlarge the domain",
+                            ));
+                        }
+                    }
+                }
+                (pts.len(), vec![(Phase::Solid, *fraction)])
             }
             Generator::PerfusedMesh { file, placement, solid_fraction, liquid_fraction } => {
                 if d != 3 {
@@ -531,6 +581,7 @@ fn min_fraction(s: &Scenario, want: Phase) -> Option<f64> {
             Generator::Box { phase, fraction, .. } | Generator::Sphere { phase, fraction, .. } if *phase == want => {
                 Some(*fraction)
             }
+            Generator::Sheet { fraction, .. } if want == Phase::Solid => Some(*fraction),
             Generator::PerfusedBlock { solid_fraction, liquid_fraction, .. }
             | Generator::PerfusedMesh { solid_fraction, liquid_fraction, .. } => {
                 Some(if want == Phase::Solid { *solid_fraction } else { *liquid_fraction })

@@ -152,16 +152,40 @@ pub fn for_lattice_offsets(dx: f64, radius: f64, dim: Dim, mut f: impl FnMut([f6
     }
 }
 
+/// Normalisation α₆ of the poly6 kernel of support R (SPEC §2), in f64.
+fn poly6_alpha(radius: f64, dim: Dim) -> f64 {
+    match dim {
+        Dim::Two => 4.0 / (std::f64::consts::PI * radius * radius),
+        Dim::Three => 315.0 / (64.0 * std::f64::consts::PI * radius.powi(3)),
+    }
+}
+
 /// S_W = Σ_k W6(|k|Δx; R) over the ideal lattice, self included (SPEC §1.2, D-2), in f64.
 /// The particle mass of a phase generated on that lattice at volume fraction n₀ is n₀ρ₀/S_W.
 pub fn lattice_poly6_sum(dx: f64, radius: f64, dim: Dim) -> f64 {
-    let alpha = match dim {
-        Dim::Two => 4.0 / (std::f64::consts::PI * radius * radius),
-        Dim::Three => 315.0 / (64.0 * std::f64::consts::PI * radius.powi(3)),
-    };
+    let alpha = poly6_alpha(radius, dim);
     let mut s = 0.0;
     for_lattice_offsets(dx, radius, dim, |p| {
         let r2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+        let t = 1.0 - r2 / (radius * radius);
+        s += alpha * t * t * t;
+    });
+    s
+}
+
+/// Σ_k W6(|k|Δx; R) over a single layer of the lattice (a sheet: the plane in 3-D, the row in 2-D),
+/// self included, with the d-dimensional poly6 normalisation (SPEC §7.12). The particle mass of a
+/// sheet seen at volume fraction nˢ on its mid-plane is nˢρ₀/(this sum).
+pub fn sheet_poly6_sum(dx: f64, radius: f64, dim: Dim) -> f64 {
+    let alpha = poly6_alpha(radius, dim);
+    let mut s = 0.0;
+    // The in-plane lattice of the sheet is the (d − 1)-dimensional lattice: offsets with z = 0 in 3-D,
+    // with y = z = 0 in 2-D.
+    for_lattice_offsets(dx, radius, dim, |p| {
+        if p[2] != 0.0 || (dim == Dim::Two && p[1] != 0.0) {
+            return;
+        }
+        let r2 = p[0] * p[0] + p[1] * p[1];
         let t = 1.0 - r2 / (radius * radius);
         s += alpha * t * t * t;
     });

@@ -27,6 +27,11 @@ pub struct Params {
     /// Liquid penalty stiffness of (2.53) [Pa].
     pub k_l: f32,
     pub c1: f32,
+    /// Liquid–void attraction γ [N/m] of (3.4) (0: off).
+    pub wicking: f32,
+    /// Pairwise surface-tension strengths [N] of (3.3): liquid–liquid s_ll and liquid–boundary s_lb.
+    pub cohesion_ll: f32,
+    pub cohesion_lb: f32,
     /// Allow negative liquid pressure (`numerics.liquid_tension`).
     pub liquid_tension: bool,
     pub k_s: f32,
@@ -109,9 +114,16 @@ impl Params {
                 l.density,
                 l.viscosity,
                 l.stiffness.unwrap_or_else(|| l.density * l.sound_speed.unwrap_or(0.0).powi(2)),
-                l.c1,
+                l.c1_from_equilibrium.map(|e| e.c1()).unwrap_or(l.c1),
             ),
             None => (1000.0, 0.0, 0.0, 0.0),
+        };
+        let (wicking, cohesion_ll, cohesion_lb) = match &s.liquid {
+            Some(l) => {
+                let c = l.cohesion.unwrap_or(crate::scenario::Cohesion { liquid: 0.0, boundary: 0.0 });
+                (l.wicking, c.liquid, c.boundary)
+            }
+            None => (0.0, 0.0, 0.0),
         };
         let (rho0_s, c10, c01, k_s, k_sat, n_sat, kbar) = match &s.solid {
             Some(m) => (m.density, m.c10, m.c01, m.k_s, m.k_sat, m.n_sat, m.friction),
@@ -180,6 +192,9 @@ impl Params {
             eta: eta as f32,
             k_l: k_l as f32,
             c1: c1 as f32,
+            wicking: wicking as f32,
+            cohesion_ll: cohesion_ll as f32,
+            cohesion_lb: cohesion_lb as f32,
             liquid_tension: n.liquid_tension,
             k_s: k_s as f32,
             k_sat: k_sat as f32,

@@ -38,6 +38,32 @@ pub fn perfused_block_oscillating() -> Scenario {
     Scenario::from_str_named(&text, "gpu_test_block_osc.ron").expect("test scene is valid")
 }
 
+/// Surface tension on both back-ends (SPEC §3.12): a 3-D liquid box standing on a plate, a fabric sheet
+/// (Δx_s = 0.25 mm, nˢ = 0.3, half of it held) lying on the liquid's top, liquid–void attraction (3.4),
+/// cohesion and adhesion (3.3), and C₁ from nˡ_eq = 0.5 (3.5). About 500 liquid, 400 fabric particles.
+pub fn wicking_block() -> Scenario {
+    let text = r#"Scenario(
+        name: "gpu_test_wicking", dimensions: 3,
+        domain: Domain(min: (0.0, 0.0, 0.0), max: (0.006, 0.006, 0.006)),
+        gravity: (0.0, 0.0, -9.81),
+        liquid: Some(Liquid(density: 1000.0, viscosity: 0.35, sound_speed: Some(2.0),
+            c1_from_equilibrium: Some(Equilibrium(solid_fraction: 0.3, liquid_fraction: 0.5)),
+            wicking: 0.0728, cohesion: Some(Cohesion(liquid: 2e-6, boundary: 1e-6)))),
+        solid: Some(Solid(density: 1000.0, c10: 100.0, c01: 0.0, k_s: 1000.0, n_sat: 0.3, k_sat: 0.0,
+            friction: 3.5e5)),
+        numerics: Numerics(dx_liquid: Some(5.0e-4), dx_solid: Some(2.5e-4), h_over_dx: 1.3),
+        particles: [
+            Box(phase: Liquid, min: (0.001, 0.001, 0.0015), max: (0.005, 0.005, 0.0030), fraction: 1.0),
+            Sheet(centre: (0.003, 0.003, 0.0031), size: (0.005, 0.005), fraction: 0.3),
+        ],
+        boundaries: [ Boundary(name: "plate", shape: Box(min: (0.0, 0.0, 0.0), max: (0.006, 0.006, 0.0015)),
+                               spacing: Some(5.0e-4)) ],
+        fixed_regions: [ Box(min: (-1.0, -1.0, -1.0), max: (0.003, 1.0, 1.0)) ],
+        duration: 0.01,
+    )"#;
+    Scenario::from_str_named(text, "gpu_test_wicking.ron").expect("test scene is valid")
+}
+
 /// The 2-D start-up Poiseuille channel (periodic in x) re-gridded to 20 rows × 10 columns (Δx = 1 mm)
 /// by `analysis::validate`'s own channel overrides.
 pub fn poiseuille_small() -> Scenario {

@@ -124,6 +124,28 @@ pub fn liquid_from_boundary(
     a
 }
 
+/// Pair factor of the liquid–void attraction (3.4), SPEC §3.12: w_j (γ/h_×²) cos(πr/(4h_×)) with the
+/// switch w_j = max(0, 1 − nˢ_j − nˡ_j) of the solid particle j; the force per unit volume on the liquid
+/// particle points toward j (D-22). Zero beyond R_× = 2h_× and for coincident particles.
+#[inline]
+pub fn wicking_pair(gamma: f32, h_x: f32, ns_j: f32, nl_j: f32, r: f32) -> f32 {
+    let w = (1.0 - ns_j - nl_j).max(0.0);
+    if r <= 0.0 || r >= 2.0 * h_x {
+        return 0.0;
+    }
+    w * (gamma / (h_x * h_x)) * (std::f32::consts::PI * r / (4.0 * h_x)).cos()
+}
+
+/// Pair force [N] of the Tartakovsky–Meakin surface tension (3.3), SPEC §3.12: s cos(πr/(2R)), toward
+/// the neighbour (D-22). Zero beyond R and for coincident particles.
+#[inline]
+pub fn cohesion_pair(s: f32, radius: f32, r: f32) -> f32 {
+    if r <= 0.0 || r >= radius {
+        return 0.0;
+    }
+    s * (std::f32::consts::PI * r / (2.0 * radius)).cos()
+}
+
 const MIRROR: ObjectPressure = ObjectPressure { density: -1.0, pressure: 0.0 };
 
 pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet, nb: &Nbrs) -> Vec<Vec3> {
@@ -137,10 +159,15 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
         .map(|i| {
             let (xi, vi, rho, pr, n_l, n_s) = (l.x[i], l.v[i], l.rho[i], l.p[i], l.n_l[i], l.n_s[i]);
             let pi = pr / (rho * rho);
+            let inv_m = 1.0 / l.m[i];
             let mut a = Vec3::ZERO;
             nb.liquid.for_each(xi, kl.r, |j, xij, r| {
                 if j == i {
                     return;
+                }
+                if p.cohesion_ll > 0.0 && r > 0.0 {
+                    // Surface tension (3.3): pair force toward j.
+                    a -= xij * (cohesion_pair(p.cohesion_ll, kl.r, r) * inv_m / r);
                 }
                 let grad = xij * kl.grad_spiky_factor(r);
                 let pj = l.p[j] / (l.rho[j] * l.rho[j]);
@@ -166,6 +193,10 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
                 let slip = no_slip_factor(&c.geoms[obj], xi, b.x[j]);
                 a +=
                     liquid_from_boundary(p, rho, pr, n_l, vi, b.m_l[j], b.v[j], xij, r, c.pressure_modes[obj], slip, g);
+                if p.cohesion_lb > 0.0 && r > 0.0 {
+                    // Adhesion (3.3) to walls and plates.
+                    a -= xij * (cohesion_pair(p.cohesion_lb, kl.r, r) * inv_m / r);
+                }
             });
             // One pass over the solid (R_× ≥ R_l): membrane particles as boundary, and friction (2.17).
             let mut f = Vec3::ZERO;
@@ -176,6 +207,10 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
                 if p.kbar > 0.0 {
                     let k = friction_coefficient(p.kbar, n_s, s.n_s[j]);
                     f += (vi - s.v[j]) * (s.m[j] / s.rho[j] * k * kx.w_poly6(r));
+                }
+                if p.wicking > 0.0 && r > 0.0 {
+                    // Liquid–void attraction (3.4) toward unsaturated solid, per unit volume ÷ ρ_i.
+                    a -= xij * (wicking_pair(p.wicking, kx.h, s.n_s[j], s.n_l[j], r) / (rho * r));
                 }
             });
             if p.kbar > 0.0 {
@@ -254,14 +289,22 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                     artificial_viscosity(vi - b.v[j], xib, r, ks.h, p.c_s, rho, p.av_alpha, p.av_beta, p.av_gamma);
                 a += grad * (b.m_s[j] * (-n_s * bracket - pib));
             });
-            // Friction reaction (2.17, D-18).
-            if p.kbar > 0.0 {
+            // Friction reaction (2.17, D-18) and reaction of the liquid–void attraction (3.4):
+            // −(m_j/ρ_j) × the pair term on liquid j (§3.12), in one walk over the liquid within R_×.
+            if p.kbar > 0.0 || p.wicking > 0.0 {
                 let mut f = Vec3::ZERO;
-                nb.liquid.for_each(xi, kx.r, |j, _, r| {
-                    let k = friction_coefficient(p.kbar, n_s, l.n_s[j]);
-                    f += (vi - l.v[j]) * (l.m[j] / l.rho[j] * k * kx.w_poly6(r));
+                let mut fw = Vec3::ZERO;
+                nb.liquid.for_each(xi, kx.r, |j, xij, r| {
+                    if p.kbar > 0.0 {
+                        let k = friction_coefficient(p.kbar, n_s, l.n_s[j]);
+                        f += (vi - l.v[j]) * (l.m[j] / l.rho[j] * k * kx.w_poly6(r));
+                    }
+                    if p.wicking > 0.0 && r > 0.0 {
+                        fw -= xij * (l.m[j] / l.rho[j] * wicking_pair(p.wicking, kx.h, n_s, s.n_l[i], r) / r);
+                    }
                 });
                 a -= f / rho;
+                a += fw / s.m[i];
             }
             // Membrane particles take the reaction of the liquid–membrane boundary forces (§4.1).
             if s.flags[i] & SolidFlags::MEMBRANE != 0 {

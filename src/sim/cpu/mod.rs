@@ -372,9 +372,10 @@ impl CpuSolver {
         };
         let (rho_l, n_s_l, p_l) = density::density_liquid(p, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb);
         // A skeleton held entirely still (Brinkman) needs no continuity, stress, F, forces or fracture:
-        // nothing reads them (its ρ is not integrated, and nˢ = ρ/ρ₀ stays as initialised).
-        let solid_pass =
-            p.solid_dynamic.then(|| density::density_solid(p, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb));
+        // nothing reads them (its ρ is not integrated, and nˢ = ρ/ρ₀ stays as initialised) — unless the
+        // liquid–void attraction (3.4) reads its nˡ (a fixed fabric).
+        let solid_pass = (p.solid_dynamic || p.wicking > 0.0)
+            .then(|| density::density_solid(p, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb));
         let l = &mut self.st.liquid;
         l.n_l = rho_l.iter().map(|r| r / p.rho0_l).collect();
         l.rho = rho_l;
@@ -387,7 +388,9 @@ impl CpuSolver {
             s.n_l = n_l_s;
             s.n_s = n_s_s;
             s.p = p_s;
-            solid::solid_stress(&self.params, &mut self.st.solid);
+            if self.params.solid_dynamic {
+                solid::solid_stress(&self.params, &mut self.st.solid);
+            }
         }
         let t0 = self.timers.lap("solid", t0);
         let p = &self.params;

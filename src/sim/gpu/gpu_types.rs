@@ -93,7 +93,13 @@ pub struct SimParams {
     pub has_liquid: u32,
     pub has_solid: u32,
     pub kappa_s: f32,
+    /// γ of (3.4) [N/m]; 0: off.
+    pub wicking: f32,
+    /// s_ll, s_lb of (3.3) [N]; 0: off.
+    pub cohesion_ll: f32,
+    pub cohesion_lb: f32,
     pub _pad0: u32,
+    pub _pad1: u32,
 }
 
 /// Set counts of a scene, as the uniform block carries them.
@@ -163,7 +169,11 @@ impl SimParams {
             has_liquid: u32::from(p.has_liquid),
             has_solid: u32::from(p.has_solid),
             kappa_s: p.kappa_s,
+            wicking: p.wicking,
+            cohesion_ll: p.cohesion_ll,
+            cohesion_lb: p.cohesion_lb,
             _pad0: 0,
+            _pad1: 0,
         }
     }
 }
@@ -361,7 +371,7 @@ pub struct GridSet {
 }
 
 const _: () = assert!(size_of::<KernelConsts>() == 32);
-const _: () = assert!(size_of::<SimParams>() == 400);
+const _: () = assert!(size_of::<SimParams>() == 416);
 const _: () = assert!(size_of::<StepState>() == 48);
 const _: () = assert!(size_of::<ObjectGpu>() == 80);
 const _: () = assert!(size_of::<Mat3Gpu>() == 48);
@@ -395,6 +405,8 @@ pub const LAYOUTS: &[StructLayout] = &[
             ("fixed_dt", offset_of!(SimParams, fixed_dt)),
             ("damping", offset_of!(SimParams, damping)),
             ("kappa_s", offset_of!(SimParams, kappa_s)),
+            ("wicking", offset_of!(SimParams, wicking)),
+            ("cohesion_lb", offset_of!(SimParams, cohesion_lb)),
         ],
     ),
     (

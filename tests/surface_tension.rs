@@ -1,0 +1,132 @@
+//! Surface tension and wicking (thesis §3.2, eqs. 3.3–3.5; SPEC §3.12, §7.12) on the CPU reference
+//! solver; the GPU twin of the same force terms is differential-tested in `gpu_vs_cpu.rs`.
+
+use perfuse::analysis::wetting::{self, ContactAngle};
+use perfuse::scenario::Scenario;
+use perfuse::sim::{BackendKind, Simulation};
+
+const DX: f64 = 1e-4;
+
+/// A 2-D drop (R = 0.8 mm, Δx_l = 0.1 mm, 197 particles) touching a plate, with cohesion s_ll (3.3)
+/// and adhesion s_lb to the plate; no gravity, so that the cap is shaped by (3.3) alone (at this
+/// strength a 1 mm drop under gravity slumps into a puddle: Bond number ≈ 3).
+fn drop_on_plate(adhesion: f64) -> Scenario {
+    let text = format!(
+        r#"Scenario(
+        name: "drop_on_plate", dimensions: 2,
+        domain: Domain(min: (-0.004, -0.0006, 0.0), max: (0.004, 0.004, 0.0)),
+        gravity: (0.0, 0.0, 0.0),
+        liquid: Some(Liquid(density: 1000.0, viscosity: 0.05, sound_speed: Some(4.0),
+            cohesion: Some(Cohesion(liquid: 0.002, boundary: {adhesion})))),
+        numerics: Numerics(dx_liquid: Some(1.0e-4), h_over_dx: 1.3),
+        particles: [ Sphere(phase: Liquid, centre: (0.0, 0.00085, 0.0), radius: 0.0008, fraction: 1.0) ],
+        boundaries: [ Boundary(name: "plate", shape: Box(min: (-0.0035, -0.0004, 0.0), max: (0.0035, 0.0, 0.0))) ],
+        duration: 0.1,
+    )"#
+    );
+    Scenario::from_str_named(&text, "drop_on_plate.ron").expect("test scene is valid")
+}
+
+/// Runs the drop to `until` and returns the contact angle at `samples` times.
+fn contact_angles(adhesion: f64, samples: &[f64]) -> Vec<ContactAngle> {
+    let sc = drop_on_plate(adhesion);
+    let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    let mass0 = sim.read_state().expect("state").liquid.total_mass();
+    let plate_top = sim.params().to_sim([0.0, 0.0, 0.0]).y as f64;
+    let mut out = Vec::new();
+    for &t in samples {
+        sim.advance_until(t, u64::MAX, |_| {}).expect("run");
+        let s = sim.read_state().expect("state");
+        assert!(s.liquid.pos.iter().all(|p| p.is_finite()), "finite positions");
+        assert!((s.liquid.total_mass() - mass0).abs() <= 1e-9 * mass0, "mass conserved");
+        // No penetration (SPEC §7.5 invariant): every liquid particle ≥ 0.3Δx from the plate's top row of
+        // particles at −Δx/2, i.e. above −0.2Δx. Adhesion pulls the contact layer down to the surface.
+        let lowest = s.liquid.pos.iter().map(|p| p.y as f64).fold(f64::INFINITY, f64::min);
+        assert!(lowest > plate_top - 0.2 * DX, "liquid entered the plate: lowest particle {lowest:.3e} m");
+        // The drop's volume: its particle count times the lattice cell (the liquid stays within ~1 % of ρ₀).
+        let volume = s.liquid.len() as f64 * DX * DX;
+        out.push(wetting::contact_angle(&s.liquid.pos, volume, plate_top, DX, 2).expect("a cap on the plate"));
+    }
+    out
+}
+
+/// A drop on an impermeable plate (thesis Fig. 3.13): with cohesion s_ll and adhesion s_lb of (3.3) it
+/// settles into a steady cap whose contact angle falls as the adhesion grows (Young: cos θ rises with the
+/// liquid–plate attraction). Measured over 60–100 ms (five samples; θ jitters by ±5° at the particle
+/// scale of this 197-particle drop): each cap steady (samples within a 12° band) and the mean angles
+/// falling with s_lb/s_ll = 0.75, 1.0, 1.5, each step by more than 3°. Measured on this drop (README):
+/// ≈ 97°, 87°, 81°; stronger adhesion saturates near 80° (the drop spreads until the particle lattice
+/// of the plate pins its contact line), weaker is not steady within the test's time (at 0.5 the cap
+/// keeps rising past 125°, at 0.25 the drop lets go of the plate).
+#[test]
+fn drop_contact_angle_falls_as_adhesion_grows() {
+    let ratios = [0.75, 1.0, 1.5];
+    let mut theta = Vec::new();
+    for r in ratios {
+        let ca = contact_angles(0.002 * r, &[0.06, 0.07, 0.08, 0.09, 0.1]);
+        let deg: Vec<f64> = ca.iter().map(|c| c.degrees).collect();
+        let mean = deg.iter().sum::<f64>() / deg.len() as f64;
+        let band = deg.iter().copied().fold(f64::MIN, f64::max) - deg.iter().copied().fold(f64::MAX, f64::min);
+        eprintln!(
+            "s_lb/s_ll = {r}: θ = {mean:.1}° (samples {deg:.1?}; from the contact layer {:.1}°), height {:.3} mm, \
+             contact layer {:.3} mm half-width",
+            ca[4].degrees_from_base,
+            ca[4].height * 1e3,
+            ca[4].base_half_width * 1e3
+        );
+        assert!(band < 12.0, "s_lb/s_ll = {r}: cap not steady ({deg:.1?})");
+        theta.push(mean);
+    }
+    for w in theta.windows(2) {
+        assert!(w[1] < w[0] - 3.0, "contact angle must fall with adhesion: {theta:.1?}");
+    }
+}
+
+/// The fabric sheet's particle mass (SPEC §7.12: m_f = nˢ_f ρ₀ˢ/Σ_sheet W6(·; R_×)) makes a liquid
+/// particle on the mid-plane see nˢ = nˢ_f, between sheet particles as on top of one (within 2 %: the
+/// in-plane lattice sum varies with the offset), in 3-D and 2-D.
+#[test]
+fn sheet_shows_its_fraction_on_the_mid_plane() {
+    for (dims, offset) in [(3, 0.0), (3, 0.5), (2, 0.0), (2, 0.5)] {
+        let dx = 2.6e-4;
+        let (domain, sheet, centre) = if dims == 3 {
+            (
+                "(-0.01, -0.01, -0.002), max: (0.01, 0.01, 0.002)",
+                "(0.0, 0.0, 0.0), size: (0.0104, 0.0104)",
+                (0.5 + offset, 0.5, 0.0),
+            )
+        } else {
+            (
+                "(-0.01, -0.002, 0.0), max: (0.01, 0.002, 0.0)",
+                "(0.0, 0.0, 0.0), size: (0.0104, 0.0)",
+                (0.5 + offset, 0.0, 0.0),
+            )
+        };
+        let text = format!(
+            r#"Scenario(
+            name: "sheet", dimensions: {dims},
+            domain: Domain(min: {domain}),
+            liquid: Some(Liquid(density: 1000.0, viscosity: 0.35, sound_speed: Some(2.0))),
+            solid: Some(Solid(density: 1200.0, c10: 1e3, c01: 0.0, k_s: 1e4, n_sat: 0.3, k_sat: 0.0)),
+            numerics: Numerics(dx_liquid: Some(2.4e-4), dx_solid: Some({dx}), h_over_dx: 1.3),
+            particles: [
+                Sphere(phase: Liquid, centre: ({}, {}, {}), radius: 1e-6, fraction: 1.0),
+                Sheet(centre: {sheet}, fraction: 0.3),
+            ],
+            fixed_regions: [ Box(min: (-1.0, -1.0, -1.0), max: (1.0, 1.0, 1.0)) ],
+            duration: 0.01,
+        )"#,
+            centre.0 * dx,
+            centre.1 * dx,
+            centre.2 * dx
+        );
+        let sc = Scenario::from_str_named(&text, "sheet.ron").expect("valid");
+        let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+        sim.step().expect("step");
+        let s = sim.read_state().expect("state");
+        assert_eq!(s.liquid.len(), 1);
+        let ns = s.liquid.n_s[0];
+        eprintln!("{dims}-D, offset {offset}Δx: nˢ = {ns:.4}");
+        assert!((ns - 0.3).abs() < 0.02 * 0.3, "{dims}-D sheet shows nˢ = {ns}");
+    }
+}
