@@ -216,7 +216,8 @@ enum Cmd {
     },
     /// Run the validation cases against their analytic references: report.json and PNG plots.
     Validate {
-        /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever).
+        /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever; wicking runs
+        /// only when named: the three fabric cases of SPEC §7.12, ≈ 45 min with --quick on a CPU).
         #[arg(long)]
         case: Option<String>,
         /// Reduced resolutions (what the test suite runs).

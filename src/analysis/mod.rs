@@ -1,6 +1,6 @@
 //! Analysis of simulations: analytic references (`analytic`), the validation cases of SPEC.md §7 with
 //! their report and plots (`validate`), PNG charts (`plot`), and the wetting measurements of the
-//! surface-tension cases (`wetting`).
+//! surface-tension cases (`wetting`) with their validation case (`wicking`).
 
 pub mod analytic;
 pub mod dmd;
@@ -9,3 +9,4 @@ pub mod plot;
 pub mod session;
 pub mod validate;
 pub mod wetting;
+pub mod wicking;

@@ -21,13 +21,19 @@ pub const HYDROSTATIC: &str = include_str!("../../assets/scenarios/hydrostatic.r
 pub const CANTILEVER: &str = include_str!("../../assets/scenarios/cantilever.ron");
 pub const CANTILEVER_2D: &str = include_str!("../../assets/scenarios/cantilever_2d.ron");
 
-/// Names accepted by `perfuse validate --case`.
+/// The cases `perfuse validate` runs by default, in order.
 pub const CASES: [&str; 5] = ["poiseuille", "brinkman", "convergence", "hydrostatic", "cantilever"];
+
+/// Cases run only when named with `--case` (each is tens of minutes on a CPU): the wicking set of SPEC
+/// §7.12 (W1–W3).
+pub const EXTRA_CASES: [&str; 1] = ["wicking"];
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ValidationError {
-    #[error("unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever")]
+    #[error(
+        "unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever, wicking"
+    )]
     UnknownCase(String),
     #[error(transparent)]
     Scenario(#[from] ScenarioError),
@@ -63,8 +69,28 @@ struct Ctx<'a> {
     progress: bool,
 }
 
+/// A metric with a lower bound (value ≥ tolerance passes).
+pub(crate) fn at_least(
+    name: &str,
+    resolution: &str,
+    metric: &str,
+    value: f64,
+    tolerance: f64,
+    wall: f64,
+) -> CaseResult {
+    CaseResult {
+        name: name.into(),
+        resolution: resolution.into(),
+        metric: metric.into(),
+        value,
+        tolerance,
+        pass: value.is_finite() && value >= tolerance,
+        wall_time_s: wall,
+    }
+}
+
 /// A metric with an upper bound (value ≤ tolerance passes).
-fn at_most(name: &str, resolution: &str, metric: &str, value: f64, tolerance: f64, wall: f64) -> CaseResult {
+pub(crate) fn at_most(name: &str, resolution: &str, metric: &str, value: f64, tolerance: f64, wall: f64) -> CaseResult {
     CaseResult {
         name: name.into(),
         resolution: resolution.into(),
@@ -86,6 +112,7 @@ pub fn run_validation(
 ) -> Result<Report, ValidationError> {
     if let Some(c) = case
         && !CASES.contains(&c)
+        && !EXTRA_CASES.contains(&c)
     {
         return Err(ValidationError::UnknownCase(c.to_string()));
     }
@@ -93,10 +120,11 @@ pub fn run_validation(
         .map_err(|e| ValidationError::Io { path: out.display().to_string(), message: e.to_string() })?;
     let ctx = Ctx { quick, backend, out, progress };
     let mut cases = Vec::new();
-    for name in CASES {
-        if case.is_some_and(|c| c != name) {
-            continue;
-        }
+    let selected: Vec<&str> = match case {
+        Some(c) => vec![c],
+        None => CASES.to_vec(),
+    };
+    for name in selected {
         if progress {
             eprintln!("validating {name} ({})…", if quick { "quick" } else { "standard" });
         }
@@ -105,6 +133,7 @@ pub fn run_validation(
             "brinkman" => brinkman(&ctx)?,
             "convergence" => convergence(&ctx)?,
             "hydrostatic" => hydrostatic(&ctx)?,
+            "wicking" => super::wicking::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
             _ => cantilever(&ctx)?,
         };
         cases.extend(rows);
@@ -119,20 +148,24 @@ pub fn run_validation(
 }
 
 fn plot(ctx: &Ctx, file: &str, chart: &Chart) -> Result<PathBuf, ValidationError> {
-    let path = ctx.out.join(file);
+    plot_into(ctx.out, file, chart)
+}
+
+pub(crate) fn plot_into(out: &Path, file: &str, chart: &Chart) -> Result<PathBuf, ValidationError> {
+    let path = out.join(file);
     line_chart(&path, chart).map_err(|message| ValidationError::Io { path: path.display().to_string(), message })?;
     Ok(path)
 }
 
 /// Invariants of every case: masses constant, all finite, nothing outside the (non-periodic) domain.
 #[derive(Default)]
-struct Invariants {
+pub(crate) struct Invariants {
     mass0: Option<(f64, f64)>,
     violations: Vec<String>,
 }
 
 impl Invariants {
-    fn check(&mut self, sim: &Simulation, s: &State) {
+    pub(crate) fn check(&mut self, sim: &Simulation, s: &State) {
         let m = (s.liquid.total_mass(), s.solid.total_mass());
         match self.mass0 {
             None => self.mass0 = Some(m),
@@ -151,7 +184,7 @@ impl Invariants {
         }
     }
 
-    fn result(&self, name: &str, resolution: &str, wall: f64) -> CaseResult {
+    pub(crate) fn result(&self, name: &str, resolution: &str, wall: f64) -> CaseResult {
         if let Some(v) = self.violations.first() {
             log::warn!("{name}: invariant violated: {v}");
         }
@@ -319,7 +352,7 @@ fn poiseuille(ctx: &Ctx) -> Result<Vec<CaseResult>, ValidationError> {
 /// `target`, stopping a hair (10⁻⁹ relative) early so that a caller re-checking its own exact sample
 /// condition on the returned clock sees the same step as with single steps; steps once if the clock is
 /// already there.
-fn advance_to(sim: &mut Simulation, target: f64) -> Result<f64, SimError> {
+pub(crate) fn advance_to(sim: &mut Simulation, target: f64) -> Result<f64, SimError> {
     let t_stop = target - 1e-9 * target.abs();
     if t_stop > sim.time() {
         sim.advance(crate::sim::ADVANCE_CHUNK, t_stop)?;
