@@ -202,3 +202,100 @@ fn fabric_draws_the_drop_in_at_a_rate_set_by_the_attraction() {
         strong.in_sheet
     );
 }
+
+/// The liquid–void attraction (3.4) on a lone liquid particle above a dry fabric, against the equation
+/// evaluated independently here in f64: a_i = (1/ρ_i) Σ_j w_j (γ/h_×²) cos(πr/(4h_×)) (x_j − x_i)/r with
+/// w_j = 1 − nˢ_j − nˡ_j, nˡ_j = m_i W6(r; R_×)/ρ₀ˡ the fabric's summation of the one particle, and ρ_i
+/// = m_i W6(0; R_l) its own. No gravity, no friction, no cohesion; the particle's pressure is clamped
+/// at 0, so the attraction is its only force, read back as v/Δt after one step (within 10⁻⁴, f32).
+#[test]
+fn wicking_attraction_on_a_lone_particle_matches_eq_3_4() {
+    let text = r#"Scenario(
+        name: "lone", dimensions: 3,
+        domain: Domain(min: (-0.004, -0.004, -0.002), max: (0.004, 0.004, 0.002)),
+        liquid: Some(Liquid(density: 1000.0, viscosity: 0.0, sound_speed: Some(2.0), wicking: 0.0728)),
+        solid: Some(Solid(density: 1000.0, c10: 1e3, c01: 0.0, k_s: 1e4, n_sat: 0.3, k_sat: 0.0)),
+        numerics: Numerics(dx_liquid: Some(2.4191e-4), dx_solid: Some(2.6e-4), h_over_dx: 1.3),
+        particles: [
+            Sphere(phase: Liquid, centre: (0.0001, 0.00005, 0.0003), radius: 1e-6, fraction: 1.0),
+            Sheet(centre: (0.0, 0.0, 0.0), size: (0.0052, 0.0052), fraction: 0.3),
+        ],
+        fixed_regions: [ Box(min: (-1.0, -1.0, -1.0), max: (1.0, 1.0, 1.0)) ],
+        duration: 0.01,
+    )"#;
+    let sc = Scenario::from_str_named(text, "lone.ron").expect("valid");
+    let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    let s0 = sim.read_state().expect("state");
+    let p = sim.params().clone();
+    let (m, xi) = (s0.liquid.mass[0] as f64, s0.liquid.pos[0].as_dvec3());
+    let pi = std::f64::consts::PI;
+    let w6 = |r: f64, big_r: f64| {
+        if r >= big_r { 0.0 } else { 315.0 / (64.0 * pi * big_r.powi(3)) * (1.0 - r * r / (big_r * big_r)).powi(3) }
+    };
+    let (h_x, r_l) = (p.k_cross.h as f64, p.k_liquid.r as f64);
+    let rho_i = m * w6(0.0, r_l);
+    let eq_3_4 = |xi: glam::DVec3| {
+        let mut a = glam::DVec3::ZERO;
+        for xj in &s0.solid.pos {
+            let d = xj.as_dvec3() - xi;
+            let r = d.length();
+            if r < 2.0 * h_x && r > 0.0 {
+                let n_l = m * w6(r, 2.0 * h_x) / p.rho0_l as f64;
+                let w = (1.0 - 0.3 - n_l).max(0.0);
+                a += d / r * (w * 0.0728 / (h_x * h_x) * (pi * r / (4.0 * h_x)).cos() / rho_i);
+            }
+        }
+        a
+    };
+    sim.step().expect("step");
+    let s1 = sim.read_state().expect("state");
+    // Predictor–corrector (2.64)–(2.68): v¹ = ½Δt (a(x⁰) + a(x¹)).
+    let a_ref = 0.5 * (eq_3_4(xi) + eq_3_4(s1.liquid.pos[0].as_dvec3()));
+    let a = s1.liquid.vel[0].as_dvec3() / s1.t;
+    eprintln!("attraction: solver {a:.4?} m/s², eq. (3.4) {a_ref:.4?} m/s²");
+    assert!(a_ref.z < 0.0 && a_ref.length() > 1.0, "the reference pulls toward the sheet");
+    assert!((a - a_ref).length() <= 1e-4 * a_ref.length(), "solver {a:?} vs (3.4) {a_ref:?}");
+}
+
+/// The pairwise surface tension (3.3) on two liquid particles next to one wall particle, against the
+/// equation evaluated here: a_1 = (1/m)[s_ll cos(πr₁₂/(2R_l)) (x₂ − x₁)/r₁₂ + s_lb cos(πr₁b/(2R_l))
+/// (x_b − x₁)/r₁b]. No gravity, no viscosity; both pressures are clamped at 0 (nˡ < 1), so (3.3) is the
+/// only force; read back as v/Δt after one step (within 10⁻⁴).
+#[test]
+fn cohesion_and_adhesion_on_a_pair_match_eq_3_3() {
+    let text = r#"Scenario(
+        name: "pair", dimensions: 2,
+        domain: Domain(min: (-0.002, -0.002, 0.0), max: (0.002, 0.002, 0.0)),
+        liquid: Some(Liquid(density: 1000.0, viscosity: 0.0, sound_speed: Some(2.0),
+            cohesion: Some(Cohesion(liquid: 0.002, boundary: 0.0015)))),
+        numerics: Numerics(dx_liquid: Some(1.0e-4), h_over_dx: 1.3),
+        particles: [
+            Sphere(phase: Liquid, centre: (0.0, 0.0, 0.0), radius: 1e-7, fraction: 1.0),
+            Sphere(phase: Liquid, centre: (0.00015, 0.00003, 0.0), radius: 1e-7, fraction: 1.0),
+        ],
+        boundaries: [ Boundary(name: "b", shape: Box(min: (-0.00005, -0.00025, 0.0), max: (0.00005, -0.00015, 0.0))) ],
+        duration: 0.01,
+    )"#;
+    let sc = Scenario::from_str_named(text, "pair.ron").expect("valid");
+    let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    let s0 = sim.read_state().expect("state");
+    assert_eq!((s0.liquid.len(), s0.boundary.pos.len()), (2, 1));
+    let r_l = sim.params().k_liquid.r as f64;
+    let m = s0.liquid.mass[0] as f64;
+    let xb = s0.boundary.pos[0].as_dvec3();
+    let pair = |s: f64, xi: glam::DVec3, xj: glam::DVec3| {
+        let d = xj - xi;
+        let r = d.length();
+        if r < r_l { d / r * (s * (std::f64::consts::PI * r / (2.0 * r_l)).cos()) } else { glam::DVec3::ZERO }
+    };
+    let eq_3_3 = |x1: glam::DVec3, x2: glam::DVec3| (pair(0.002, x1, x2) + pair(0.0015, x1, xb)) / m;
+    let x0 = (s0.liquid.pos[0].as_dvec3(), s0.liquid.pos[1].as_dvec3());
+    sim.step().expect("step");
+    let s1 = sim.read_state().expect("state");
+    let x1 = (s1.liquid.pos[0].as_dvec3(), s1.liquid.pos[1].as_dvec3());
+    let a_ref = 0.5 * (eq_3_3(x0.0, x0.1) + eq_3_3(x1.0, x1.1));
+    let a = s1.liquid.vel[0].as_dvec3() / s1.t;
+    eprintln!("surface tension: solver {a:.4?} m/s², eq. (3.3) {a_ref:.4?} m/s²");
+    assert!(a_ref.length() > 1.0);
+    assert!((a - a_ref).length() <= 1e-4 * a_ref.length(), "solver {a:?} vs (3.3) {a_ref:?}");
+}

@@ -650,8 +650,9 @@ impl CpuSolver {
             emitted: e.emitted,
             sunk: e.sunk,
             per_emitter: e.emitters.iter().map(|m| m.count).collect(),
-            emitted_volume_m3: e.emitters.iter().map(|m| m.count as f64 * f64::from(m.volume)).sum(),
-            backlog_m3: e.emitters.iter().map(|m| f64::from(m.acc.max(0.0))).sum(),
+            // fold from +0.0: f64's `Sum` starts at −0.0, which summary.json printed for "no emitters".
+            emitted_volume_m3: e.emitters.iter().fold(0.0, |a, m| a + m.count as f64 * f64::from(m.volume)),
+            backlog_m3: e.emitters.iter().fold(0.0, |a, m| a + f64::from(m.acc.max(0.0))),
             live_liquid: self.st.liquid.x.len() as u64,
             capacity: e.capacity.max(self.st.liquid.x.len()) as u64,
             capacity_reached: e.capacity_reached,
