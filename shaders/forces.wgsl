@@ -3,10 +3,11 @@
 //
 // Liquid (2.50): −κ_S nˡ∇p with the spiky kernel (D-15, D-16), mirrored boundary pressure with the
 // hydrostatic wall extrapolation (§4.1, D-23), viscosity κ_V(η/ρ_i)Σ(m_j/ρ_j)(v_j − v_i)∇²W_V (D-7, D-17)
-// with the no-slip ghost factor, pairwise friction (2.17, D-18), g.
+// with the no-slip ghost factor, pairwise friction (2.17, D-18), g, and when enabled the surface tension
+// (3.3) and the liquid–void attraction (3.4) (§3.12).
 // Solid (2.48): deviatoric stress over bonds, −nˢ∇p, artificial stress (2.59)–(2.60), artificial
-// viscosity (2.54)–(2.58), boundary contact, friction reaction, membrane reactions gathered from the
-// liquid (§4.1: a gather, no atomics), g. XSPH (2.69) for both.
+// viscosity (2.54)–(2.58), boundary contact, friction and attraction reactions, membrane reactions
+// gathered from the liquid (§4.1: a gather, no atomics), g. XSPH (2.69) for both.
 #import common
 
 // Monaghan's Π_ij (2.54)–(2.58); zero for separating pairs.

@@ -87,14 +87,13 @@ fn run_case(
     speeds.sort_by(f64::total_cmp);
     let v99 = speeds.get((0.99 * speeds.len() as f64) as usize).copied().unwrap_or(f64::NAN);
     let total = s.liquid.total_mass();
-    let below: f64 = s
+    let below = s
         .liquid
         .pos
         .iter()
         .zip(&s.liquid.mass)
         .filter(|(x, _)| (x.z as f64 - sheet_z) < -r_x)
-        .map(|(_, m)| *m as f64)
-        .sum::<f64>()
+        .fold(0.0, |acc, (_, m)| acc + *m as f64)
         / total;
     log::info!(
         "{file}: stain {:.1} mm² = {:.2} A_ref, centroid ({:.2}, {:.2}) mm, v99 {:.2} mm/s, below {:.3}",

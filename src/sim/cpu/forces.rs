@@ -1,10 +1,11 @@
 //! Accelerations of liquid and solid particles — twin of `shaders/forces.wgsl` (SPEC §3.6–3.13).
 //!
 //! Liquid (2.50): −nˡ∇p with the spiky kernel (D-15, D-16), mirrored boundary pressure (§4.1, D-23),
-//! viscosity κ_V(η/ρ_i)Σ(m_j/ρ_j)(v_j − v_i)∇²W_V (D-7, D-17), pairwise friction (2.17, D-18), g.
+//! viscosity κ_V(η/ρ_i)Σ(m_j/ρ_j)(v_j − v_i)∇²W_V (D-7, D-17), pairwise friction (2.17, D-18), g, and
+//! when enabled the surface tension (3.3) and the liquid–void attraction (3.4) (§3.12).
 //! Solid (2.48): deviatoric stress over bonds, −nˢ∇p, artificial stress (2.59)–(2.60), artificial
-//! viscosity (2.54)–(2.58) over current neighbours, boundary contact, friction reaction, membrane
-//! reactions gathered from the liquid (§4.1: no atomics), g. XSPH (2.69) for both.
+//! viscosity (2.54)–(2.58) over current neighbours, boundary contact, friction and attraction reactions,
+//! membrane reactions gathered from the liquid (§4.1: no atomics), g. XSPH (2.69) for both.
 
 use super::{BoundarySet, LiquidSet, Nbrs, ObjectPressure, SolidSet};
 use crate::scenario::SolidFlags;
