@@ -45,7 +45,7 @@ fn contact_angles(adhesion: f64, samples: &[f64]) -> Vec<ContactAngle> {
         assert!(lowest > plate_top - 0.2 * DX, "liquid entered the plate: lowest particle {lowest:.3e} m");
         // The drop's volume: its particle count times the lattice cell (the liquid stays within ~1 % of ρ₀).
         let volume = s.liquid.len() as f64 * DX * DX;
-        out.push(wetting::contact_angle(&s.liquid.pos, volume, plate_top, DX, 2).expect("a cap on the plate"));
+        out.push(wetting::contact_angle(&s.liquid.pos, volume, plate_top, DX, 2, 1).expect("a cap on the plate"));
     }
     out
 }

@@ -5,11 +5,6 @@
 
 use glam::Vec3;
 
-/// Vertical axis of a scene: y in 2-D, z in 3-D (gravity points down along it).
-fn up(p: Vec3, dim: usize) -> f64 {
-    if dim == 2 { p.y as f64 } else { p.z as f64 }
-}
-
 /// A drop resting on a plate, measured as the circular (2-D) or spherical (3-D) cap that has the drop's
 /// volume.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -28,8 +23,8 @@ pub struct ContactAngle {
 }
 
 /// Measures the contact angle of a drop of `volume` (m² in 2-D, m³ in 3-D) whose particles `liquid` rest
-/// on a plate with top surface at height `plate_top` (vertical axis y in 2-D, z in 3-D), lattice spacing
-/// `dx`.
+/// on a plate whose top surface is at height `plate_top` along the plate's normal axis `up` (0 x, 1 y,
+/// 2 z; `droplet_plate.ron` and the 2-D tests use y), lattice spacing `dx`.
 ///
 /// θ is the angle of the cap that holds the drop's volume at the drop's height H (top particle + Δx/2):
 /// with R = H/(1 − cos θ), A = R²(θ − sin θ cos θ) in 2-D and V = πH²(3R − H)/3 in 3-D, both decreasing
@@ -37,8 +32,15 @@ pub struct ContactAngle {
 /// and the contact line are ragged at the particle scale, which defeats local slope or circle fits.
 /// The same cap over the contact layer's width is reported as `degrees_from_base`. None without liquid
 /// or with a non-positive volume.
-pub fn contact_angle(liquid: &[Vec3], volume: f64, plate_top: f64, dx: f64, dim: usize) -> Option<ContactAngle> {
-    let heights: Vec<f64> = liquid.iter().map(|p| up(*p, dim) - plate_top).collect();
+pub fn contact_angle(
+    liquid: &[Vec3],
+    volume: f64,
+    plate_top: f64,
+    dx: f64,
+    dim: usize,
+    up: usize,
+) -> Option<ContactAngle> {
+    let heights: Vec<f64> = liquid.iter().map(|p| p[up.min(2)] as f64 - plate_top).collect();
     let lowest = heights.iter().copied().fold(f64::INFINITY, f64::min);
     let top = heights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     if !lowest.is_finite() || volume.is_nan() || volume <= 0.0 {
@@ -156,7 +158,7 @@ mod tests {
                 }
             }
             let volume = pts.len() as f64 * dx.powi(dim as i32);
-            let ca = contact_angle(&pts, volume, 0.0, dx, dim).expect("a cap");
+            let ca = contact_angle(&pts, volume, 0.0, dx, dim, if dim == 2 { 1 } else { 2 }).expect("a cap");
             assert!(
                 (ca.degrees - theta_deg).abs() < 6.0 && (ca.degrees_from_base - theta_deg).abs() < 4.0,
                 "{dim}-D cap of {theta_deg}°: measured {:.1}° from the height, {:.1}° from the base",
