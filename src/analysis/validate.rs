@@ -78,26 +78,23 @@ pub(crate) fn at_least(
     tolerance: f64,
     wall: f64,
 ) -> CaseResult {
-    CaseResult {
-        name: name.into(),
-        resolution: resolution.into(),
-        metric: metric.into(),
-        value,
-        tolerance,
-        pass: value.is_finite() && value >= tolerance,
-        wall_time_s: wall,
-    }
+    row(name, resolution, metric, value, tolerance, value >= tolerance, wall)
 }
 
 /// A metric with an upper bound (value ≤ tolerance passes).
 pub(crate) fn at_most(name: &str, resolution: &str, metric: &str, value: f64, tolerance: f64, wall: f64) -> CaseResult {
+    row(name, resolution, metric, value, tolerance, value <= tolerance, wall)
+}
+
+/// One row; a non-finite value never passes.
+fn row(name: &str, resolution: &str, metric: &str, value: f64, tolerance: f64, within: bool, wall: f64) -> CaseResult {
     CaseResult {
         name: name.into(),
         resolution: resolution.into(),
         metric: metric.into(),
         value,
         tolerance,
-        pass: value.is_finite() && value <= tolerance,
+        pass: value.is_finite() && within,
         wall_time_s: wall,
     }
 }
