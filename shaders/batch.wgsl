@@ -115,7 +115,7 @@ fn batch_motion() {
         o.density = m.density;
         o.pressure = m.pressure;
         o.kind = m.kind;
-        o._pad = 0u;
+        o.blade = u32(m.rest_a.w);
         objects[k] = o;
     }
     // Inlet buffer velocities u(tⁿ⁺¹) = direction · Q(tⁿ⁺¹) · L/(N·V_p) (twin: emit::emit_velocities).

@@ -122,12 +122,14 @@ struct ObjectGpu {
     pressure: f32,
     // 0 box, 1 sphere, 2 none
     kind: u32,
-    _pad: u32,
+    // 1 + the cut axis of a blade_cut scalpel (its box's mid-plane cuts bonds, fracture.wgsl); 0 otherwise
+    blade: u32,
 }
 
 // Mirrors `MotionGpu`: one boundary object's rest shape, pressure mode and analytic motion
 // (`scenario::motion_at`), evaluated on the GPU from the GPU clock by `batch_motion` (batch.wgsl).
 struct MotionGpu {
+    // rest shape; rest_a.w = 1 + the cut axis of a blade_cut scalpel, 0 otherwise (ObjectGpu.blade)
     rest_a: vec4<f32>,
     rest_b: vec4<f32>,
     // Translate: velocity [m/s]; Oscillate: amplitude [m] (z = 0 in 2-D)

@@ -3,8 +3,54 @@
 // stretched beyond their breaking length — 2h_s (the thesis criterion), or max(2h_s, λ_c r₀) with a
 // critical stretch λ_c (`solid.critical_stretch`) — keeping the order of the rest (and of their limits). Each particle tests its own list with the same
 // rule, so removal is symmetric and needs no atomics (the broken-end counter is an integer atomic).
-// The table itself is built once on the host by the CPU twin `fracture_build_bonds`.
+// The table itself is built once on the host by the CPU twin `fracture_build_bonds`. A scalpel with
+// `blade_cut` (SPEC §4.6, D-25; ObjectGpu.blade > 0) also cuts every bond whose segment crosses its
+// blade: the mid-plane rectangle of its box across the cut axis, at the pose of tⁿ⁺¹.
 #import common
+
+// Twin of cpu::fracture::blade_crosses: does the segment xi → xi + d cross object o's blade (its
+// mid-plane rectangle grown by the support radius R_s in the plane — the reach of its particles)?
+fn blade_crosses(o: ObjectGpu, xi: vec3<f32>, d: vec3<f32>) -> bool {
+    let ax = i32(o.blade) - 1;
+    let mid = 0.5 * (o.geom_a[ax] + o.geom_b[ax]);
+    let di = xi[ax] - mid;
+    let dj = (xi[ax] + d[ax]) - mid;
+    if (di * dj >= 0.0) {
+        return false;
+    }
+    let t = di / (di - dj);
+    var dims = 2;
+    if (params.switches.x != 0u) {
+        dims = 3;
+    }
+    for (var k = 0; k < dims; k++) {
+        if (k != ax) {
+            let c = xi[k] + d[k] * t;
+            if (!(c >= o.geom_a[k] - params.k_solid.r && c <= o.geom_b[k] + params.k_solid.r)) {
+                return false;
+            }
+        }
+    }
+    return true;
+}
+
+// Twin of cpu::fracture::bond_cut: tested from the lower index's end so that i and j agree bit for bit.
+fn bond_cut(i: u32, j: u32, xi: vec3<f32>, xj: vec3<f32>) -> bool {
+    var p = xi;
+    var q = xj;
+    if (j < i) {
+        p = xj;
+        q = xi;
+    }
+    let d = min_image(q - p);
+    for (var k = 0u; k < params.switches.w; k++) {
+        let o = objects[k];
+        if (o.blade != 0u && blade_crosses(o, p, d)) {
+            return true;
+        }
+    }
+    return false;
+}
 
 @compute @workgroup_size(64)
 fn fracture_apply(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -19,8 +65,9 @@ fn fracture_apply(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var k = 0u; k < n; k++) {
         let j = bond_table[i * cap + k];
         let limit2 = bond_limit[i * cap + k];
-        let d = min_image(xi - solid_pos[j].xyz);
-        if (dot3(d, d) <= limit2) {
+        let xj = solid_pos[j].xyz;
+        let d = min_image(xi - xj);
+        if (dot3(d, d) <= limit2 && !bond_cut(i, j, xi, xj)) {
             bond_table[i * cap + keep] = j;
             bond_limit[i * cap + keep] = limit2;
             keep += 1u;

@@ -235,7 +235,8 @@ fn shipped_scenarios_are_valid() {
 }
 
 /// Organ meshes and the new sections: a missing mesh file, a mesh in a 2-D scenario, a mesh placed
-/// outside the domain, an absurd tool speed, a critical stretch below 1, a bad physiology scale.
+/// outside the domain, an absurd tool speed, a blade on an indenter, a critical stretch below 1, a bad
+/// physiology scale.
 #[test]
 fn mesh_tool_fracture_and_physiology_errors() {
     let liver_path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenarios/liver.ron");
@@ -244,12 +245,14 @@ fn mesh_tool_fracture_and_physiology_errors() {
         Ok(_) => panic!("expected an error"),
         Err(e) => e.to_string(),
     };
-    let cases: [(&str, &str, &[&str]); 4] = [
+    let cases: [(&str, &str, &[&str]); 5] = [
         ("\"../meshes/liver.obj\"", "\"../meshes/no_such_liver.obj\"", &["particles[0].file", "no_such_liver.obj"]),
+        ("kind: Indenter, max_speed: 0.1)", "kind: Indenter, max_speed: 500.0)", &["boundaries[2].tool.max_speed"]),
+        // Only a box-shaped scalpel has a blade to cut with.
         (
-            "max_speed: 0.1))),\n        Boundary(name: \"indenter\"",
-            "max_speed: 500.0))),\n        Boundary(name: \"indenter\"",
-            &["tool.max_speed"],
+            "kind: Indenter, max_speed: 0.1)",
+            "kind: Indenter, max_speed: 0.1, blade_cut: true)",
+            &["boundaries[2].tool.blade_cut"],
         ),
         ("critical_stretch: Some(1.3)", "critical_stretch: Some(0.9)", &["solid.critical_stretch"]),
         ("volume_scale: 10.0", "volume_scale: -1.0", &["physiology.volume_scale"]),

@@ -225,7 +225,7 @@ mod tests {
             shape: Region::Box { min: [0.0; 3], max: [0.001, 0.01, 0.02] },
             centre: [0.0005, 0.005, 0.01],
             velocity: [0.0; 3],
-            tool: Some(crate::scenario::Tool { kind: ToolKind::Scalpel, max_speed: 0.2 }),
+            tool: Some(crate::scenario::Tool { kind: ToolKind::Scalpel, max_speed: 0.2, blade_cut: false }),
         };
         let objects = [pose];
         let scene = ToolScene {

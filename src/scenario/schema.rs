@@ -444,6 +444,11 @@ pub struct Tool {
     pub kind: ToolKind,
     /// Largest tool speed [m/s]; keep it below the sound speeds' tenth (numerics.sound_speed_*).
     pub max_speed: f64,
+    /// Scalpel only (a `Box`): also break every bond whose segment crosses the blade's mid-plane
+    /// rectangle (across the box's thinnest axis) — SPEC §4.6 option `blade_cut`, D-25. Off, the blade
+    /// separates tissue only through the thesis's distance criterion (it may merely push the organ).
+    #[serde(default)]
+    pub blade_cut: bool,
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]

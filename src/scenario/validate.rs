@@ -2,7 +2,7 @@
 //! with each other, and the time-step bounds reachable. Each problem names the field and the fix.
 
 use super::generate::lattice_count;
-use super::{Flow, Generator, InitialVelocity, Motion, Phase, PressureMode, Problem, Region, Scenario};
+use super::{Flow, Generator, InitialVelocity, Motion, Phase, PressureMode, Problem, Region, Scenario, ToolKind};
 
 /// Most particles a scenario may generate (all sets together): beyond this a desktop run is absurd.
 pub const MAX_PARTICLES: usize = 20_000_000;
@@ -487,6 +487,13 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
                     format!("{f}.tool.max_speed"),
                     format!("{} m/s is beyond any surgical tool", tool.max_speed),
                     "give at most 100 m/s (a projectile); a scalpel moves at ~0.01–0.1 m/s",
+                ));
+            }
+            if tool.blade_cut && !(tool.kind == ToolKind::Scalpel && matches!(b.shape, Region::Box { .. })) {
+                return Err(Check::fail(
+                    format!("{f}.tool.blade_cut"),
+                    "only a scalpel shaped as a Box has a blade to cut with",
+                    "remove blade_cut, or make the object Tool(kind: Scalpel, …) with shape: Box(…)",
                 ));
             }
         }

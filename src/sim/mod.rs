@@ -18,7 +18,7 @@ pub mod state;
 use crate::scenario::{Motion, Scenario, ScenarioError, V3};
 use params::Params;
 use serde::Serialize;
-pub use state::State;
+pub use state::{SolidComponent, State};
 
 /// Which term of (2.70) (or our additions) limited a time step.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

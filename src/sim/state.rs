@@ -101,6 +101,13 @@ impl State {
     /// Kinematic (fixed, ligament) particles are left out so that a clamp does not join the pieces
     /// it holds.
     pub fn solid_component_sizes(&self) -> Vec<usize> {
+        self.solid_components().iter().map(|c| c.members.len()).collect()
+    }
+
+    /// The connected components of the solid by intact bonds (Alg. 2), largest first (ties by lowest
+    /// member), without the kinematic particles; each knows whether an intact bond ties it to one of
+    /// them (whether it still hangs from the ligament or clamp).
+    pub fn solid_components(&self) -> Vec<SolidComponent> {
         let n = self.solid.len();
         let fixed =
             |i: usize| self.solid_extra.flags.get(i).is_some_and(|f| f & crate::scenario::SolidFlags::KINEMATIC != 0);
@@ -112,13 +119,19 @@ impl State {
             }
             i
         }
+        let mut tied = vec![false; n];
         for (i, list) in self.solid_extra.bond_lists.iter().enumerate() {
             if fixed(i) {
                 continue;
             }
             for &j in list {
                 let j = j as usize;
-                if j < n && !fixed(j) {
+                if j >= n {
+                    continue;
+                }
+                if fixed(j) {
+                    tied[i] = true;
+                } else {
                     let (a, b) = (root(&mut parent, i), root(&mut parent, j));
                     if a != b {
                         parent[a.max(b)] = a.min(b);
@@ -126,14 +139,19 @@ impl State {
                 }
             }
         }
-        let mut size = vec![0usize; n];
+        let mut by_root: Vec<Option<usize>> = vec![None; n];
+        let mut comps: Vec<SolidComponent> = Vec::new();
         for i in (0..n).filter(|&i| !fixed(i)) {
             let r = root(&mut parent, i);
-            size[r] += 1;
+            let k = *by_root[r].get_or_insert_with(|| {
+                comps.push(SolidComponent { members: Vec::new(), anchored: false });
+                comps.len() - 1
+            });
+            comps[k].members.push(i);
+            comps[k].anchored |= tied[i];
         }
-        let mut sizes: Vec<usize> = size.into_iter().filter(|&s| s > 0).collect();
-        sizes.sort_unstable_by(|a, b| b.cmp(a));
-        sizes
+        comps.sort_by(|a, b| b.members.len().cmp(&a.members.len()).then(a.members[0].cmp(&b.members[0])));
+        comps
     }
 
     /// Liquid particles outside the solid body: those that see (almost) no solid, nˢ < 0.05 (inside the
@@ -148,6 +166,15 @@ impl State {
         let now: u64 = self.solid_extra.bonds.iter().map(|&b| b as u64).sum();
         (init - now.min(init)) / 2
     }
+}
+
+/// A connected piece of the solid ([`State::solid_components`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolidComponent {
+    /// Solid particle indices, ascending.
+    pub members: Vec<usize>,
+    /// An intact bond ties it to a kinematic (fixed) particle.
+    pub anchored: bool,
 }
 
 /// nˢ below which a liquid particle counts as outside the solid ([`State::liquid_outside`]).
@@ -175,7 +202,12 @@ mod tests {
         s.solid_extra.flags = vec![0, 0, 0, 0, 0, crate::scenario::SolidFlags::KINEMATIC];
         s.solid_extra.bond_lists = vec![vec![1], vec![0, 2], vec![1, 5], vec![4, 5], vec![3], vec![2, 3]];
         assert_eq!(s.solid_component_sizes(), vec![3, 2]);
+        let c = s.solid_components();
+        assert_eq!((c[0].members.clone(), c[0].anchored), (vec![0, 1, 2], true));
+        assert_eq!((c[1].members.clone(), c[1].anchored), (vec![3, 4], true));
         s.solid_extra.bond_lists = vec![vec![1], vec![0], vec![5], vec![4, 5], vec![3], vec![2, 3]];
         assert_eq!(s.solid_component_sizes(), vec![2, 2, 1]);
+        let anchored: Vec<bool> = s.solid_components().iter().map(|c| c.anchored).collect();
+        assert_eq!(anchored, vec![false, true, true], "0-1 hangs free once 1-2 broke");
     }
 }

@@ -91,3 +91,29 @@ pub fn tear(critical_stretch: Option<f64>) -> Scenario {
     );
     Scenario::from_str_named(&text, "tear.ron").expect("valid")
 }
+
+/// A 2-D block of tissue 6 cm × 3 cm (Δx = 3 mm, 200 particles) clamped by its left end over a plate,
+/// cut at x = 3 mm (between two lattice columns) by a scalpel (a 3 mm thin box, two layers at Δx/2)
+/// coming down at 1 m/s — the hanging liver of thesis §4.2.6 in miniature — with the thesis criterion
+/// only or also `blade_cut` (SPEC §4.6).
+pub fn hanging_cut(blade_cut: bool) -> Scenario {
+    let text = format!(
+        r#"Scenario(
+        name: "hanging_cut", dimensions: 2,
+        domain: Domain(min: (-0.05, -0.07, 0.0), max: (0.05, 0.07, 0.0)),
+        gravity: (0.0, -9.81, 0.0),
+        solid: Some(Solid(density: 1000.0, c10: 1e5, c01: 0.0, k_s: 1e5, n_sat: 1.0, k_sat: 0.0)),
+        numerics: Numerics(dx_solid: Some(0.003)),
+        particles: [ Box(phase: Solid, min: (-0.03, -0.015, 0.0), max: (0.03, 0.015, 0.0), fraction: 1.0) ],
+        fixed_regions: [ Box(min: (-0.04, -0.02, -1.0), max: (-0.021, 0.02, 1.0)) ],
+        boundaries: [
+            Boundary(name: "plate", shape: Box(min: (-0.045, -0.055, 0.0), max: (0.045, -0.046, 0.0))),
+            Boundary(name: "scalpel", shape: Box(min: (0.0015, 0.025, 0.0), max: (0.0045, 0.055, 0.0)), spacing: Some(0.0015),
+                     motion: Translate(velocity: (0.0, -1.0, 0.0), start: 0.0, stop: Some(0.048)),
+                     tool: Some(Tool(kind: Scalpel, max_speed: 1.0, blade_cut: {blade_cut}))),
+        ],
+        duration: 0.16,
+    )"#
+    );
+    Scenario::from_str_named(&text, "hanging_cut.ron").expect("valid")
+}

@@ -2,10 +2,75 @@
 //! `shaders/fracture.wgsl`. Bonds are built once from a radius search; after each corrector every
 //! particle drops the bonds whose separation exceeds the searching radius 2h_s. Each particle tests its
 //! own list with the same rule, so removal is symmetric and needs no atomics; order is preserved.
+//! A scalpel with `blade_cut` (SPEC §4.6, D-25) also cuts every bond whose segment crosses its blade.
 
 use super::SolidSet;
+use super::forces::ObjectGeom;
 use super::grid::{CellList, Neighbours, min_image};
+use crate::scenario::{BoundaryObject, Region, ToolKind};
 use crate::sim::params::Params;
+use glam::Vec3;
+
+/// The axis across which a `blade_cut` scalpel cuts: its box's thinnest axis among the first `dims`
+/// (the blade is the box's mid-plane rectangle across it); `None` for every other object.
+pub fn blade_axis(o: &BoundaryObject, dims: usize) -> Option<usize> {
+    let tool = o.tool.as_ref()?;
+    if !(tool.blade_cut && tool.kind == ToolKind::Scalpel) {
+        return None;
+    }
+    let Region::Box { min, max } = o.shape else { return None };
+    (0..dims).min_by(|&a, &b| (max[a] - min[a]).total_cmp(&(max[b] - min[b])))
+}
+
+/// A blade at its current pose: the plane x[axis] = (a + b)[axis]/2, bounded by [a, b] grown by
+/// `reach` on the other axes.
+///
+/// The reach is the support radius R_s of the blade's virtual particles: the tissue feels the blade
+/// (and is pushed by it) that far out, so a blade cutting only within its own box would push a
+/// hanging organ ahead of its edge instead of entering it (measured on `hanging_cut`: the slab bent
+/// 2 cm down and stayed whole). The cut front therefore runs one support radius ahead of the edge.
+#[derive(Clone, Copy, Debug)]
+pub struct Blade {
+    pub axis: usize,
+    pub a: Vec3,
+    pub b: Vec3,
+    pub reach: f32,
+}
+
+/// The blades of the `blade_cut` scalpels among `objects` at the poses `geoms`.
+pub fn blades(p: &Params, objects: &[BoundaryObject], geoms: &[ObjectGeom]) -> Vec<Blade> {
+    objects
+        .iter()
+        .zip(geoms)
+        .filter_map(|(o, g)| blade_axis(o, p.dim.n()).map(|axis| Blade { axis, a: g.a, b: g.b, reach: p.k_solid.r }))
+        .collect()
+}
+
+/// Is bond (i, j) cut by the blade? Tested from the lower index's end (`i_first` = i < j), so that i
+/// and j, each testing its own list, take the same decision bit for bit.
+#[inline]
+pub fn bond_cut(bl: &Blade, xi: Vec3, xj: Vec3, i_first: bool, period: Vec3, dims: usize) -> bool {
+    let (p, q) = if i_first { (xi, xj) } else { (xj, xi) };
+    blade_crosses(bl, p, min_image(q - p, period), dims)
+}
+
+/// Does the segment x_i → x_i + d cross the blade? (Strictly opposite sides of its plane, and the
+/// crossing point inside the rectangle.) Same f32 operations as `blade_crosses` in fracture.wgsl.
+#[inline]
+pub fn blade_crosses(bl: &Blade, xi: Vec3, d: Vec3, dims: usize) -> bool {
+    let ax = bl.axis;
+    let mid = 0.5 * (bl.a[ax] + bl.b[ax]);
+    let di = xi[ax] - mid;
+    let dj = (xi[ax] + d[ax]) - mid;
+    if di * dj >= 0.0 {
+        return false;
+    }
+    let t = di / (di - dj);
+    (0..dims).filter(|&k| k != ax).all(|k| {
+        let c = xi[k] + d[k] * t;
+        c >= bl.a[k] - bl.reach && c <= bl.b[k] + bl.reach
+    })
+}
 
 /// Builds C(i) = { j ≠ i : |x_j − x_i| < 2h_s } in ascending j, sized to the largest neighbourhood.
 pub fn fracture_build_bonds(p: &Params, s: &mut SolidSet, list: &CellList) {
@@ -48,8 +113,10 @@ pub fn fracture_build_bonds(p: &Params, s: &mut SolidSet, list: &CellList) {
     s.bond_count0 = s.bond_count.clone();
 }
 
-/// Drops bonds stretched beyond their breaking length (`bond_limit`); returns how many bonds (pairs) broke this step.
-pub fn fracture_apply(p: &Params, s: &mut SolidSet) -> u64 {
+/// Drops bonds stretched beyond their breaking length (`bond_limit`) or crossing a blade; returns how
+/// many bonds (pairs) broke this step.
+pub fn fracture_apply(p: &Params, s: &mut SolidSet, blades: &[Blade]) -> u64 {
+    let dims = p.dim.n();
     let period = p.periodic_len();
     let cap = s.bond_capacity;
     let mut removed_ends = 0u64;
@@ -59,7 +126,9 @@ pub fn fracture_apply(p: &Params, s: &mut SolidSet) -> u64 {
         for k in 0..n {
             let j = s.bonds[i * cap + k] as usize;
             let limit2 = s.bond_limit[i * cap + k];
-            if min_image(s.x[i] - s.x[j], period).length_squared() <= limit2 {
+            if min_image(s.x[i] - s.x[j], period).length_squared() <= limit2
+                && !blades.iter().any(|bl| bond_cut(bl, s.x[i], s.x[j], i < j, period, dims))
+            {
                 s.bonds[i * cap + keep] = j as u32;
                 s.bond_limit[i * cap + keep] = limit2;
                 keep += 1;

@@ -484,8 +484,12 @@ impl CpuSolver {
         integrate::integrate_correct(&self.params, &mut self.st, dt);
         let t0 = self.timers.lap("integrate", t0);
         // 9: fracture on xⁿ⁺¹.
-        let broken =
-            if self.params.solid_dynamic { fracture::fracture_apply(&self.params, &mut self.st.solid) } else { 0 };
+        let broken = if self.params.solid_dynamic {
+            let blades = fracture::blades(&self.params, &self.st.objects, &self.geoms);
+            fracture::fracture_apply(&self.params, &mut self.st.solid, &blades)
+        } else {
+            0
+        };
         self.timers.lap("fracture", t0);
         self.st.t = t_next;
         self.st.steps += 1;

@@ -214,7 +214,8 @@ pub struct ObjectGpu {
     pub density: f32,
     pub pressure: f32,
     pub kind: u32,
-    pub _pad: u32,
+    /// 1 + the cut axis of a `blade_cut` scalpel (`cpu::fracture::blade_axis`); 0 for any other object.
+    pub blade: u32,
 }
 
 /// `MotionGpu` (common.wgsl): one boundary object's rest shape, pressure mode and analytic motion.

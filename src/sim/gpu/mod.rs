@@ -1201,10 +1201,15 @@ fn objects_at(
                 density: m.density,
                 pressure: m.pressure,
                 kind: g.kind,
-                _pad: 0,
+                blade: blade_code(params, o),
             }
         })
         .collect()
+}
+
+/// `ObjectGpu::blade`: 1 + the cut axis of a `blade_cut` scalpel, 0 for any other object.
+fn blade_code(params: &Params, o: &BoundaryObject) -> u32 {
+    super::cpu::fracture::blade_axis(o, params.dim.n()).map_or(0, |a| a as u32 + 1)
 }
 
 /// The motion table of batch.wgsl: each object's rest shape (simulation coordinates, after any
@@ -1236,7 +1241,7 @@ fn motion_table(
                 }
             };
             MotionGpu {
-                rest_a: v4(g.a, 0.0),
+                rest_a: v4(g.a, blade_code(params, o) as f32),
                 rest_b: v4(g.b, 0.0),
                 vec,
                 times,

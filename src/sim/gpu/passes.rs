@@ -223,8 +223,12 @@ pub const INTEGRATE_CORRECT_SOLID: PassSpec = pass(
     &[Params, Step, SolidVel, SolidAcc, SolidAcc0, SolidDrho, SolidDens, SolidFlags],
     Dispatch::Solid,
 );
-pub const FRACTURE_APPLY: PassSpec =
-    pass("fracture_apply", "fracture", &[Params, Step, SolidPos, BondTable, BondCount, BondLimit], Dispatch::Solid);
+pub const FRACTURE_APPLY: PassSpec = pass(
+    "fracture_apply",
+    "fracture",
+    &[Params, Step, Objects, SolidPos, BondTable, BondCount, BondLimit],
+    Dispatch::Solid,
+);
 pub const INTEGRATE_CHECK_LIQUID: PassSpec =
     pass("integrate_check_liquid", "integrate", &[Params, Step, LiquidPos, LiquidVel, LiquidDens], Dispatch::Liquid);
 pub const INTEGRATE_CHECK_SOLID: PassSpec =
