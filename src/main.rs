@@ -216,8 +216,9 @@ enum Cmd {
     },
     /// Run the validation cases against their analytic references: report.json and PNG plots.
     Validate {
-        /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever; wicking runs
-        /// only when named: the three fabric cases of SPEC §7.12, ≈ 45 min with --quick on a CPU).
+        /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever; wicking and
+        /// liver_scalpel run only when named: the three fabric cases of SPEC §7.12, ≈ 45 min with
+        /// --quick on a CPU; the liver cut twice, SPEC §9.3 L1/L2, ≈ 2.5 h with --quick on a CPU).
         #[arg(long)]
         case: Option<String>,
         /// Reduced resolutions (what the test suite runs).

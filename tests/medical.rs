@@ -181,3 +181,65 @@ fn indentation_bulges_and_does_not_leak() {
     assert!(deepest.0 > 0.2 * L_C as f32, "the indenter pressed {} m", deepest.0);
     assert!(deepest.1 as f64 >= 0.5 * bulge_volume, "lateral bulge {} m", deepest.1);
 }
+
+/// Scalpel and the liver (thesis §4.2.6, SPEC §9.2): `liver_scalpel.ron` at the CI preset (Δx_s = 8 mm)
+/// sets the scene the acceptance of §9.3 needs — the organ hangs by kinematic ligament particles on the
+/// right lobe's dome, the blade's plane leaves ≥ 10 % of the tissue on its far side, the blade starts
+/// above the organ (≥ 2h) and stops below it, the plate lies 5 cm under the organ, the capsule is there.
+/// The cut itself runs in `perfuse validate --case liver_scalpel` (≈ 75 min per run here); its
+/// dynamics in miniature — blade_cut severs a hanging block, the free piece falls, the clamped one
+/// stays — is `tests/fracture.rs::blade_cut_severs_the_hanging_slab_and_the_free_piece_falls`.
+#[test]
+fn liver_scalpel_hangs_the_liver_under_the_blade_over_the_plate() {
+    use perfuse::analysis::scalpel::{CI_DX, LIVER_SCALPEL, PLATE_TOP, Variant, preset_overrides};
+    use perfuse::scenario::{Motion, Region, SolidFlags};
+    let path = "assets/scenarios/liver_scalpel.ron";
+    let l1 = Scenario::from_str_with_overrides(LIVER_SCALPEL, path, &preset_overrides(CI_DX, Variant::Thesis))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let l2 = Scenario::from_str_with_overrides(LIVER_SCALPEL, path, &preset_overrides(CI_DX, Variant::Product))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let tool = |s: &Scenario| s.boundaries[1].tool.clone().expect("the scalpel is a tool");
+    assert!(
+        !tool(&l1).blade_cut && l1.solid.as_ref().and_then(|m| m.critical_stretch).is_none(),
+        "L1: thesis criterion"
+    );
+    assert!(tool(&l2).blade_cut && l2.solid.as_ref().and_then(|m| m.critical_stretch) == Some(1.3), "L2: the product");
+    let mut sim = Simulation::new(&l2, BackendKind::Cpu).expect("builds");
+    let s = sim.read_state().expect("state");
+    let p = sim.params().clone();
+    let h = f64::from(p.k_solid.h);
+    let at = |x: Vec3| p.to_world(x);
+    let kin = |i: usize| s.solid_extra.flags[i] & SolidFlags::KINEMATIC != 0;
+    let membrane = s.solid_extra.flags.iter().filter(|&&f| f & SolidFlags::MEMBRANE != 0).count();
+    let ys: Vec<f64> = s.solid.pos.iter().map(|&x| at(x)[1]).collect();
+    let (y_lo, y_hi) = ys.iter().fold((f64::MAX, f64::MIN), |(a, b), &y| (a.min(y), b.max(y)));
+    let fixed: Vec<usize> = (0..s.solid.len()).filter(|&i| kin(i)).collect();
+    let free: Vec<usize> = (0..s.solid.len()).filter(|&i| !kin(i)).collect();
+    let beyond = free.iter().filter(|&&i| at(s.solid.pos[i])[0] > 0.016).count();
+    eprintln!(
+        "liver_scalpel CI: {} solid ({membrane} capsule, {} ligament) + {} liquid; {beyond} free solid beyond the blade \
+         ({:.0} %); organ y ∈ [{y_lo:.4}, {y_hi:.4}] m",
+        s.solid.len(),
+        fixed.len(),
+        s.liquid.len(),
+        100.0 * beyond as f64 / free.len() as f64
+    );
+    assert!(membrane > 0, "the capsule is there");
+    assert!(fixed.len() >= 10, "ligament particles: {}", fixed.len());
+    assert!(
+        fixed.iter().all(|&i| at(s.solid.pos[i])[0] < 0.016 && at(s.solid.pos[i])[1] > 0.0195),
+        "ligaments on the right lobe's dome, this side of the blade"
+    );
+    let frac = beyond as f64 / free.len() as f64;
+    assert!((0.1..0.9).contains(&frac), "the blade leaves ≥ 10 % on each side: {frac:.3}");
+    let Region::Box { min, .. } = l2.boundaries[1].shape else { panic!("the scalpel is a box") };
+    let Motion::Translate { velocity, stop: Some(stop), .. } = l2.boundaries[1].motion else { panic!("it moves") };
+    let edge_end = min[1] + velocity[1] * stop;
+    assert!(min[1] > y_hi + 2.0 * h, "blade starts 2h above the organ: edge {:.4}, top {y_hi:.4}", min[1]);
+    assert!(edge_end < y_lo - 2.0 * h, "blade clears the organ: edge {edge_end:.4}, bottom {y_lo:.4}");
+    let gap = y_lo - PLATE_TOP;
+    assert!((gap - 0.05).abs() < CI_DX, "plate 5 cm below the organ: {gap:.4} m");
+    sim.step().expect("a step");
+    let outside = sim.read_state().expect("state").liquid_outside();
+    assert_eq!(outside, 0, "the blood starts inside the capsule");
+}

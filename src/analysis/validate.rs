@@ -25,14 +25,14 @@ pub const CANTILEVER_2D: &str = include_str!("../../assets/scenarios/cantilever_
 pub const CASES: [&str; 5] = ["poiseuille", "brinkman", "convergence", "hydrostatic", "cantilever"];
 
 /// Cases run only when named with `--case` (each is tens of minutes on a CPU): the wicking set of SPEC
-/// §7.12 (W1–W3).
-pub const EXTRA_CASES: [&str; 1] = ["wicking"];
+/// §7.12 (W1–W3) and the liver cut by the scalpel (SPEC §9.3, L1 and L2).
+pub const EXTRA_CASES: [&str; 2] = ["wicking", "liver_scalpel"];
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ValidationError {
     #[error(
-        "unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever, wicking"
+        "unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever, wicking, liver_scalpel"
     )]
     UnknownCase(String),
     #[error(transparent)]
@@ -131,6 +131,7 @@ pub fn run_validation(
             "convergence" => convergence(&ctx)?,
             "hydrostatic" => hydrostatic(&ctx)?,
             "wicking" => super::wicking::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
+            "liver_scalpel" => super::scalpel::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
             _ => cantilever(&ctx)?,
         };
         cases.extend(rows);
@@ -179,6 +180,11 @@ impl Invariants {
         if outside > 0 {
             self.violations.push(format!("{outside} particles outside the domain at t = {:.4}", s.t));
         }
+    }
+
+    /// Number of violations so far.
+    pub(crate) fn count(&self) -> usize {
+        self.violations.len()
     }
 
     pub(crate) fn result(&self, name: &str, resolution: &str, wall: f64) -> CaseResult {
