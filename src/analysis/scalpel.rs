@@ -9,14 +9,50 @@
 //!
 //! `--quick` re-grids the file to SPEC §9.2's "CI" preset (Δx_s = 8 mm: 944 lattice + 1 662 capsule
 //! children solid, 759 liquid), ≈ 75 min per run on two CPU cores (Δt = 3.4·10⁻⁵ s, sound-limited, for
-//! 3.8 s with the relaxation); the standard run is the "desktop" preset (Δx_s = 4 mm), a GPU run.
+//! 3.8 s with the relaxation); the standard run is the "desktop" preset (Δx_s = 4 mm), a GPU run. Each
+//! run also renders three frames (relaxed, 0.5 s after the pieces part, the end) where an adapter is.
 
 use super::plot::{Chart, Series};
 use super::validate::{CaseResult, Invariants, ValidationError, advance_to, at_least, at_most, plot_into};
 use crate::scenario::{Scenario, SolidFlags};
 use crate::sim::{BackendKind, Simulation, State};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// Offscreen frames of a run (the rendered PNGs the issue asks for), when an adapter (a GPU or
+/// lavapipe) is there; without one the run goes on without pictures.
+struct Frames {
+    ctx: crate::sim::gpu::GpuContext,
+    renderer: crate::render::Renderer,
+    camera: Option<crate::render::OrbitCamera>,
+    dir: PathBuf,
+    prefix: String,
+}
+
+impl Frames {
+    fn new(dir: &Path, prefix: &str) -> Option<Frames> {
+        let ctx = crate::sim::gpu::GpuContext::new()
+            .map_err(|e| log::warn!("no adapter for the liver_scalpel frames ({e}); running without them"))
+            .ok()?;
+        let renderer = crate::render::Renderer::new(&ctx.device, &ctx.queue)
+            .map_err(|e| log::warn!("cannot render the liver_scalpel frames: {e}"))
+            .ok()?;
+        Some(Frames { ctx, renderer, camera: None, dir: dir.to_path_buf(), prefix: prefix.to_string() })
+    }
+
+    /// Writes `<prefix>_<tag>.png` (1280×720) of the current state; the camera is fitted on the first.
+    fn shoot(&mut self, sim: &Simulation, tag: &str) {
+        let camera = self.camera.get_or_insert_with(|| crate::render::snapshot::default_camera(sim));
+        let path = self.dir.join(format!("{}_{tag}.png", self.prefix));
+        match crate::render::snapshot::render_image(sim, &self.ctx, &mut self.renderer, camera, (1280, 720)) {
+            Ok(img) => match img.save(&path) {
+                Ok(()) => log::info!("rendered {} at t = {:.3} s", path.display(), sim.time()),
+                Err(e) => log::warn!("cannot write {}: {e}", path.display()),
+            },
+            Err(e) => log::warn!("cannot render {}: {e}", path.display()),
+        }
+    }
+}
 
 /// The shipped scenario (the "thesis" preset, Δx_s = 1.7 mm).
 pub const LIVER_SCALPEL: &str = include_str!("../../assets/scenarios/liver_scalpel.ron");
@@ -102,10 +138,26 @@ fn centroid(s: &State, members: &[usize]) -> glam::DVec3 {
     sum / members.len().max(1) as f64
 }
 
-/// Runs `sc` (a re-gridded `liver_scalpel.ron`): relaxation, then the cut, sampling every 0.05 s.
-pub fn run(sc: &Scenario, backend: BackendKind, progress: bool) -> Result<ScalpelOutcome, ValidationError> {
-    let mut sim = Simulation::new(sc, backend)?;
+/// Runs `sc` (a re-gridded `liver_scalpel.ron`): relaxation, then the cut, sampling every 0.05 s. With
+/// `frames` = (dir, prefix), renders `<prefix>_relaxed.png`, `<prefix>_separated.png` (0.5 s after the
+/// pieces part) and `<prefix>_end.png` into dir.
+pub fn run(
+    sc: &Scenario,
+    backend: BackendKind,
+    progress: bool,
+    frames: Option<(&Path, &str)>,
+) -> Result<ScalpelOutcome, ValidationError> {
+    let mut frames = frames.and_then(|(dir, prefix)| Frames::new(dir, prefix));
+    let gpu = match (&frames, backend) {
+        (Some(f), BackendKind::Gpu) => Some(f.ctx.clone()),
+        _ => None,
+    };
+    let mut sim = if gpu.is_some() { Simulation::with_gpu(sc, gpu)? } else { Simulation::new(sc, backend)? };
     sim.relax(|_| {})?;
+    if let Some(f) = &mut frames {
+        f.shoot(&sim, "relaxed");
+    }
+    let mut shot_separated = false;
     let p = sim.params().clone();
     let plate_y = p.to_sim([0.0, PLATE_TOP, 0.0]).y as f64;
     let dx_l = p.dx_liquid as f64;
@@ -171,6 +223,12 @@ pub fn run(sc: &Scenario, backend: BackendKind, progress: bool) -> Result<Scalpe
                 }
             }
             Some(m) => {
+                if !shot_separated && t >= out.separation.unwrap_or(0.0) + 0.5 - 1e-9 {
+                    if let Some(f) = &mut frames {
+                        f.shoot(&sim, "separated");
+                    }
+                    shot_separated = true;
+                }
                 let y = centroid(&s, m).y - plate_y;
                 out.free_height.push((t, y));
                 if t <= out.separation.unwrap_or(0.0) + 1.0 + 1e-9 {
@@ -188,6 +246,9 @@ pub fn run(sc: &Scenario, backend: BackendKind, progress: bool) -> Result<Scalpe
     }
     if let Some(b) = bar {
         b.finish_and_clear();
+    }
+    if let Some(f) = &mut frames {
+        f.shoot(&sim, "end");
     }
     let comps = s.solid_components();
     let pieces: Vec<_> = comps.iter().filter(|c| c.members.len() >= big).collect();
@@ -268,8 +329,8 @@ pub fn validate(
             "assets/scenarios/liver_scalpel.ron",
             &preset_overrides(dx, variant),
         )?;
-        let o = run(&sc, backend, progress)?;
         let short = if variant == Variant::Product { "L2" } else { "L1" };
+        let o = run(&sc, backend, progress, Some((out, &format!("liver_scalpel_{short}"))))?;
         series.push(Series {
             label: format!("{short}: free piece height above the plate [m]"),
             points: o.free_height.clone(),
