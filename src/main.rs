@@ -216,9 +216,10 @@ enum Cmd {
     },
     /// Run the validation cases against their analytic references: report.json and PNG plots.
     Validate {
-        /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever; wicking and
-        /// liver_scalpel run only when named: the three fabric cases of SPEC §7.12, ≈ 45 min with
-        /// --quick on a CPU; the liver cut twice, SPEC §9.3 L1/L2, ≈ 2.5 h with --quick on a CPU).
+        /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever; wicking,
+        /// liver_scalpel and projectile run only when named: the three fabric cases of SPEC §7.12,
+        /// ≈ 45 min with --quick on a CPU; the liver cut twice, SPEC §9.3 L1/L2, ≈ 2.5 h; the
+        /// projectile of SPEC §7.10 for 1 s).
         #[arg(long)]
         case: Option<String>,
         /// Reduced resolutions (what the test suite runs).

@@ -5,8 +5,10 @@
 
 pub mod analytic;
 pub mod dmd;
+pub mod frames;
 pub mod hemorrhage;
 pub mod plot;
+pub mod projectile;
 pub mod scalpel;
 pub mod session;
 pub mod validate;

@@ -12,47 +12,13 @@
 //! 3.8 s with the relaxation); the standard run is the "desktop" preset (Δx_s = 4 mm), a GPU run. Each
 //! run also renders three frames (relaxed, 0.5 s after the pieces part, the end) where an adapter is.
 
+use super::frames::Frames;
 use super::plot::{Chart, Series};
 use super::validate::{CaseResult, Invariants, ValidationError, advance_to, at_least, at_most, plot_into};
 use crate::scenario::{Scenario, SolidFlags};
 use crate::sim::{BackendKind, Simulation, State};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
-
-/// Offscreen frames of a run (the rendered PNGs the issue asks for), when an adapter (a GPU or
-/// lavapipe) is there; without one the run goes on without pictures.
-struct Frames {
-    ctx: crate::sim::gpu::GpuContext,
-    renderer: crate::render::Renderer,
-    camera: Option<crate::render::OrbitCamera>,
-    dir: PathBuf,
-    prefix: String,
-}
-
-impl Frames {
-    fn new(dir: &Path, prefix: &str) -> Option<Frames> {
-        let ctx = crate::sim::gpu::GpuContext::new()
-            .map_err(|e| log::warn!("no adapter for the liver_scalpel frames ({e}); running without them"))
-            .ok()?;
-        let renderer = crate::render::Renderer::new(&ctx.device, &ctx.queue)
-            .map_err(|e| log::warn!("cannot render the liver_scalpel frames: {e}"))
-            .ok()?;
-        Some(Frames { ctx, renderer, camera: None, dir: dir.to_path_buf(), prefix: prefix.to_string() })
-    }
-
-    /// Writes `<prefix>_<tag>.png` (1280×720) of the current state; the camera is fitted on the first.
-    fn shoot(&mut self, sim: &Simulation, tag: &str) {
-        let camera = self.camera.get_or_insert_with(|| crate::render::snapshot::default_camera(sim));
-        let path = self.dir.join(format!("{}_{tag}.png", self.prefix));
-        match crate::render::snapshot::render_image(sim, &self.ctx, &mut self.renderer, camera, (1280, 720)) {
-            Ok(img) => match img.save(&path) {
-                Ok(()) => log::info!("rendered {} at t = {:.3} s", path.display(), sim.time()),
-                Err(e) => log::warn!("cannot write {}: {e}", path.display()),
-            },
-            Err(e) => log::warn!("cannot render {}: {e}", path.display()),
-        }
-    }
-}
 
 /// The shipped scenario (the "thesis" preset, Δx_s = 1.7 mm).
 pub const LIVER_SCALPEL: &str = include_str!("../../assets/scenarios/liver_scalpel.ron");

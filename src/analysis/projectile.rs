@@ -1,0 +1,290 @@
+//! The projectile validation case (`perfuse validate --case projectile`; SPEC §7.10): `projectile.ron`
+//! (thesis §4.2.5) — a sphere shot at 5 m/s through the capsule-enclosed perfused cube, a source inside
+//! keeping the wound bleeding — measured against SPEC's four acceptance items: (1) the broken bonds lie
+//! along the path (≥ 90 % of them with their midpoint, when they broke, within R_p + 2h of the axis)
+//! and the bonds straddling the path are cut (≥ 95 % after exit); (2) 0.1 s after exit the tunnel is
+//! open (solid within 0.5R_p of the axis ≤ 20 % of its initial count); (3) the liquid outside the
+//! tissue grows after exit and at the end is ≥ 20 % of the emitted volume; (4) the emitter balance.
+//!
+//! `--quick` re-grids the file to SPEC §7.5's CI lattice (12³ solid, 11³ liquid) and skips the
+//! relaxation; the standard run is the file (32³/30³, relaxed): a GPU run. Frames (before entry, just
+//! after exit, the end) are rendered where an adapter is.
+
+use super::frames::Frames;
+use super::validate::{CaseResult, Invariants, ValidationError, advance_to, at_least, at_most};
+use crate::scenario::{Motion, Region, Scenario};
+use crate::sim::{BackendKind, Simulation, State};
+use std::path::Path;
+use std::time::Instant;
+
+/// The shipped scenario (32³ solid, 30³ liquid, relaxed).
+pub const PROJECTILE: &str = include_str!("../../assets/scenarios/projectile.ron");
+/// Cube side L_c [m]; the path runs along +x through (·, 0, L_c/2).
+const L_C: f64 = 0.05;
+
+/// `--set` overrides that re-grid `projectile.ron` to ns³ solid and nl³ liquid (one h = 1.3Δx_s, the
+/// plate 3 layers at Δx_s, the projectile at Δx_s/2, the source of radius 2Δx_l), without relaxation.
+pub fn lattice_overrides(ns: usize, nl: usize) -> Vec<String> {
+    let (dx_s, dx_l) = (L_C / ns as f64, L_C / nl as f64);
+    vec![
+        "relaxation=null".into(),
+        format!("numerics.dx_solid={dx_s}"),
+        format!("numerics.dx_liquid={dx_l}"),
+        format!("numerics.h_liquid={}", 1.3 * dx_s),
+        format!("boundaries.0.spacing={dx_s}"),
+        format!("boundaries.0.shape.min=[-0.075, -0.075, {}]", -3.0 * dx_s),
+        format!("boundaries.1.spacing={}", 0.5 * dx_s),
+        format!("emitters.0.region.radius={}", 2.0 * dx_l),
+    ]
+}
+
+/// What one run measured (SPEC §7.10's quantities).
+#[derive(Clone, Debug, Default)]
+pub struct ProjectileOutcome {
+    pub resolution: String,
+    /// Broken bonds (pairs) and those whose midpoint, when they broke, lay within R_p + 2h of the axis.
+    pub broken: usize,
+    pub broken_near_path: usize,
+    /// Initial bonds straddling the path (segment within 0.25R_p of the axis) and those broken at exit.
+    pub straddling: usize,
+    pub straddling_cut: usize,
+    /// Solid particles within 0.5R_p of the axis inside the cube: initially and 0.1 s after exit.
+    pub tunnel_initial: usize,
+    /// `None` when the run ended before 0.1 s after exit.
+    pub tunnel_after: Option<usize>,
+    /// Liquid outside the tissue [m³] at exit and at the end; emitted volume [m³]; particle balance.
+    pub outside_at_exit: f64,
+    pub outside_end: f64,
+    pub emitted: f64,
+    pub balance: i64,
+    pub invariants_failed: usize,
+    pub first_violation: Option<String>,
+}
+
+/// Distance of a (scenario-coordinate) point to the path axis (·, 0, L_c/2).
+fn off_axis(p: [f64; 3]) -> f64 {
+    p[1].hypot(p[2] - 0.5 * L_C)
+}
+
+/// Distance from the path axis to the segment a–b, both projected on the plane across the path.
+fn segment_off_axis(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let (ay, az, by, bz) = (a[1], a[2] - 0.5 * L_C, b[1], b[2] - 0.5 * L_C);
+    let (dy, dz) = (by - ay, bz - az);
+    let len2 = dy * dy + dz * dz;
+    let t = if len2 > 0.0 { (-(ay * dy + az * dz) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    (ay + t * dy).hypot(az + t * dz)
+}
+
+fn inside_cube(p: [f64; 3]) -> bool {
+    p[0].abs() <= 0.5 * L_C && p[1].abs() <= 0.5 * L_C && (0.0..=L_C).contains(&p[2])
+}
+
+/// Runs `sc` (a re-gridded `projectile.ron`), sampling every 0.5 ms until 0.1 s after exit, then every
+/// 0.05 s. With `frames` = (dir, prefix), renders `<prefix>_before|exit|end.png`.
+pub fn run(
+    sc: &Scenario,
+    backend: BackendKind,
+    frames: Option<(&Path, &str)>,
+) -> Result<ProjectileOutcome, ValidationError> {
+    let (centre, r_p) = match sc.boundaries.get(1).map(|b| &b.shape) {
+        Some(Region::Sphere { centre, radius }) => (*centre, *radius),
+        _ => return Err(missing("a spherical projectile as boundary 1")),
+    };
+    let speed = match sc.boundaries.get(1).map(|b| &b.motion) {
+        Some(Motion::Translate { velocity, .. }) if velocity[0] > 0.0 => velocity[0],
+        _ => return Err(missing("a projectile moving along +x")),
+    };
+    // The trailing edge leaves the exit face x = L_c/2.
+    let t_exit = (0.5 * L_C + r_p - centre[0]) / speed;
+    let mut frames = frames.and_then(|(dir, prefix)| Frames::new(dir, prefix));
+    let gpu = match (&frames, backend) {
+        (Some(f), BackendKind::Gpu) => Some(f.ctx.clone()),
+        _ => None,
+    };
+    let mut sim = if gpu.is_some() { Simulation::with_gpu(sc, gpu)? } else { Simulation::new(sc, backend)? };
+    sim.relax(|_| {})?;
+    if let Some(f) = &mut frames {
+        f.shoot(&sim, "before");
+    }
+    let p = sim.params().clone();
+    let world = |x: glam::Vec3| p.to_world(x);
+    let reach = r_p + 2.0 * f64::from(p.k_solid.h);
+    let s0 = sim.read_state()?;
+    let n_l0 = s0.liquid.len();
+    let mut out = ProjectileOutcome {
+        resolution: format!(
+            "{} solid + {} liquid, dx_s {:.2} mm, R_p {:.1} mm",
+            s0.solid.len(),
+            n_l0,
+            p.dx_solid * 1e3,
+            r_p * 1e3
+        ),
+        tunnel_initial: (0..s0.solid.len())
+            .filter(|&i| {
+                let w = world(s0.solid.pos[i]);
+                inside_cube(w) && off_axis(w) < 0.5 * r_p
+            })
+            .count(),
+        ..Default::default()
+    };
+    let mut straddling: Vec<(usize, usize)> = Vec::new();
+    for (i, l) in s0.solid_extra.bond_lists.iter().enumerate() {
+        for &j in l.iter().filter(|&&j| (j as usize) > i) {
+            let (a, b) = (world(s0.solid.pos[i]), world(s0.solid.pos[j as usize]));
+            if inside_cube(a) && inside_cube(b) && segment_off_axis(a, b) < 0.25 * r_p {
+                straddling.push((i, j as usize));
+            }
+        }
+    }
+    out.straddling = straddling.len();
+    let outside_volume = |s: &State| {
+        (0..s.liquid.len())
+            .filter(|&i| s.liquid.n_s[i] < crate::sim::state::LIQUID_OUTSIDE_NS)
+            .map(|i| f64::from(s.liquid.mass[i]) / f64::from(p.rho0_l))
+            .sum::<f64>()
+    };
+    let mut inv = Invariants::with_emitters().open_domain();
+    inv.check(&sim, &s0);
+    let mut prev = s0.clone();
+    let (mut exit_seen, mut tunnel_seen) = (false, false);
+    let mut t_next = 5e-4f64;
+    while sim.time() < sc.duration - 1e-9 {
+        let t = advance_to(&mut sim, t_next.min(sc.duration))?;
+        if t < t_next.min(sc.duration) - 1e-9 {
+            continue;
+        }
+        let s = sim.read_state()?;
+        inv.check(&sim, &s);
+        // bonds that broke since the last sample, located at their midpoint now (the lists keep their
+        // ascending order as bonds drop out, so a merge walk finds them)
+        if s.broken_bonds() != prev.broken_bonds() {
+            for (i, (was, now)) in prev.solid_extra.bond_lists.iter().zip(&s.solid_extra.bond_lists).enumerate() {
+                let mut k = 0;
+                for &j in was {
+                    if now.get(k) == Some(&j) {
+                        k += 1;
+                    } else if (j as usize) > i {
+                        out.broken += 1;
+                        let m = (s.solid.pos[i] + s.solid.pos[j as usize]) * 0.5;
+                        out.broken_near_path += usize::from(off_axis(world(m)) <= reach);
+                    }
+                }
+            }
+        }
+        if !exit_seen && t >= t_exit - 1e-9 {
+            exit_seen = true;
+            out.straddling_cut =
+                straddling.iter().filter(|(i, j)| !s.solid_extra.bond_lists[*i].contains(&(*j as u32))).count();
+            out.outside_at_exit = outside_volume(&s);
+            if let Some(f) = &mut frames {
+                f.shoot(&sim, "exit");
+            }
+        }
+        if !tunnel_seen && t >= t_exit + 0.1 - 1e-9 {
+            tunnel_seen = true;
+            out.tunnel_after = Some(
+                (0..s.solid.len())
+                    .filter(|&i| {
+                        let w = world(s.solid.pos[i]);
+                        inside_cube(w) && off_axis(w) < 0.5 * r_p
+                    })
+                    .count(),
+            );
+        }
+        prev = s;
+        t_next += if t < t_exit + 0.1 { 5e-4 } else { 0.05 };
+    }
+    if let Some(f) = &mut frames {
+        f.shoot(&sim, "end");
+    }
+    let totals = sim.emit_totals()?;
+    out.outside_end = outside_volume(&prev);
+    out.emitted = totals.emitted_volume_m3;
+    out.balance = n_l0 as i64 + totals.emitted as i64 - totals.sunk as i64 - prev.liquid.len() as i64;
+    out.invariants_failed = inv.count();
+    out.first_violation = inv.first();
+    log::info!(
+        "{}: {} bonds broke, {} near the path; {} of {} straddling cut at exit; tunnel {} → {}; \
+         outside {:.3e} → {:.3e} m³ of {:.3e} emitted; balance {}",
+        sc.name,
+        out.broken,
+        out.broken_near_path,
+        out.straddling_cut,
+        out.straddling,
+        out.tunnel_initial,
+        out.tunnel_after.map_or("(run too short)".to_string(), |n| n.to_string()),
+        out.outside_at_exit,
+        out.outside_end,
+        out.emitted,
+        out.balance
+    );
+    Ok(out)
+}
+
+fn missing(what: &str) -> ValidationError {
+    ValidationError::Io { path: "assets/scenarios/projectile.ron".into(), message: format!("expected {what}") }
+}
+
+/// Rows of `report.json` (SPEC §7.10 (1)–(4) and the invariants).
+pub fn rows(o: &ProjectileOutcome, wall: f64) -> Vec<CaseResult> {
+    let (n, r) = ("projectile", o.resolution.as_str());
+    let frac = |a: usize, b: usize| if b == 0 { f64::NAN } else { a as f64 / b as f64 };
+    vec![
+        at_least(n, r, "broken_bonds_near_path_fraction", frac(o.broken_near_path, o.broken), 0.9, wall),
+        at_least(n, r, "straddling_bonds_cut_fraction", frac(o.straddling_cut, o.straddling), 0.95, wall),
+        at_most(
+            n,
+            r,
+            "tunnel_solid_after_over_initial",
+            o.tunnel_after.map_or(f64::NAN, |a| frac(a, o.tunnel_initial)),
+            0.2,
+            wall,
+        ),
+        at_least(
+            n,
+            r,
+            "liquid_outside_growth_after_exit_m3",
+            o.outside_end - o.outside_at_exit,
+            1e-9, // "increases after exit": by at least a cubic millimetre
+            wall,
+        ),
+        at_least(n, r, "liquid_outside_over_emitted", o.outside_end / o.emitted.max(f64::MIN_POSITIVE), 0.2, wall),
+        at_most(n, r, "abs(emitter_balance)", o.balance.unsigned_abs() as f64, 0.0, wall),
+        at_most(n, r, "invariant_violations", o.invariants_failed as f64, 0.0, wall),
+    ]
+}
+
+/// SPEC §7.10 on `projectile.ron` (quick: 12³/11³, no relaxation).
+pub fn validate(
+    quick: bool,
+    backend: BackendKind,
+    out: &Path,
+    _progress: bool,
+) -> Result<Vec<CaseResult>, ValidationError> {
+    let started = Instant::now();
+    let ov = if quick { lattice_overrides(12, 11) } else { Vec::new() };
+    let sc = Scenario::from_str_with_overrides(PROJECTILE, "assets/scenarios/projectile.ron", &ov)?;
+    let o = run(&sc, backend, Some((out, "projectile")))?;
+    Ok(rows(&o, started.elapsed().as_secs_f64()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The path geometry: distances to the axis (·, 0, L_c/2) of a point and of a segment across it.
+    #[test]
+    fn distances_to_the_path_axis() {
+        assert!((off_axis([0.3, 0.003, 0.025 + 0.004]) - 0.005).abs() < 1e-12);
+        // a segment crossing the axis in the cross-section plane passes at 0
+        assert!(segment_off_axis([0.0, -0.01, 0.025], [0.01, 0.01, 0.025]) < 1e-12);
+        // one beside it passes at its nearest end
+        assert!((segment_off_axis([0.0, 0.002, 0.027], [0.0, 0.002, 0.03]) - 0.002f64.hypot(0.002)).abs() < 1e-12);
+        // the re-gridded lattice keeps one h = 1.3Δx_s for both phases and the source at 2Δx_l
+        let ov = lattice_overrides(12, 11);
+        assert!(ov.contains(&format!("numerics.h_liquid={}", 1.3 * L_C / 12.0)));
+        assert!(ov.contains(&format!("emitters.0.region.radius={}", 2.0 * L_C / 11.0)));
+        let sc = Scenario::from_str_with_overrides(PROJECTILE, "assets/scenarios/projectile.ron", &ov).expect("valid");
+        assert!(sc.relaxation.is_none());
+    }
+}
