@@ -1,13 +1,14 @@
 //! Offscreen PNG frames of a validation run (the rendered frames the medical cases hand in), drawn with
 //! the viewer's renderer on whatever adapter there is (a GPU or lavapipe).
 
-use crate::sim::Simulation;
+use crate::scenario::Scenario;
+use crate::sim::{BackendKind, SimError, Simulation};
 use std::path::{Path, PathBuf};
 
 /// Offscreen frames of a run (the rendered PNGs the issue asks for), when an adapter (a GPU or
 /// lavapipe) is there; without one the run goes on without pictures.
 pub(crate) struct Frames {
-    pub(crate) ctx: crate::sim::gpu::GpuContext,
+    ctx: crate::sim::gpu::GpuContext,
     renderer: crate::render::Renderer,
     camera: Option<crate::render::OrbitCamera>,
     dir: PathBuf,
@@ -37,4 +38,19 @@ impl Frames {
             Err(e) => log::warn!("cannot render {}: {e}", path.display()),
         }
     }
+}
+
+/// The simulation of a validation run and, with `frames` = (dir, prefix), its frame writer: a GPU run
+/// shares the renderer's device (the frames read its buffers), a CPU run renders on any adapter.
+pub(crate) fn simulation_with_frames(
+    sc: &Scenario,
+    backend: BackendKind,
+    frames: Option<(&Path, &str)>,
+) -> Result<(Simulation, Option<Frames>), SimError> {
+    let frames = frames.and_then(|(dir, prefix)| Frames::new(dir, prefix));
+    let sim = match (&frames, backend) {
+        (Some(f), BackendKind::Gpu) => Simulation::with_gpu(sc, Some(f.ctx.clone()))?,
+        _ => Simulation::new(sc, backend)?,
+    };
+    Ok((sim, frames))
 }

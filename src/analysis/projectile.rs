@@ -10,10 +10,10 @@
 //! relaxation; the standard run is the file (32³/30³, relaxed): a GPU run. Frames (before entry, just
 //! after exit, the end) are rendered where an adapter is.
 
-use super::frames::Frames;
+use super::frames::simulation_with_frames;
 use super::validate::{CaseResult, Invariants, ValidationError, advance_to, at_least, at_most};
 use crate::scenario::{Motion, Region, Scenario};
-use crate::sim::{BackendKind, Simulation, State};
+use crate::sim::{BackendKind, State};
 use std::path::Path;
 use std::time::Instant;
 
@@ -96,12 +96,7 @@ pub fn run(
     };
     // The trailing edge leaves the exit face x = L_c/2.
     let t_exit = (0.5 * L_C + r_p - centre[0]) / speed;
-    let mut frames = frames.and_then(|(dir, prefix)| Frames::new(dir, prefix));
-    let gpu = match (&frames, backend) {
-        (Some(f), BackendKind::Gpu) => Some(f.ctx.clone()),
-        _ => None,
-    };
-    let mut sim = if gpu.is_some() { Simulation::with_gpu(sc, gpu)? } else { Simulation::new(sc, backend)? };
+    let (mut sim, mut frames) = simulation_with_frames(sc, backend, frames)?;
     sim.relax(|_| {})?;
     if let Some(f) = &mut frames {
         f.shoot(&sim, "before");

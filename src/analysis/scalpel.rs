@@ -12,11 +12,11 @@
 //! 3.8 s with the relaxation); the standard run is the "desktop" preset (Δx_s = 4 mm), a GPU run. Each
 //! run also renders three frames (relaxed, 0.5 s after the pieces part, the end) where an adapter is.
 
-use super::frames::Frames;
+use super::frames::simulation_with_frames;
 use super::plot::{Chart, Series};
 use super::validate::{CaseResult, Invariants, ValidationError, advance_to, at_least, at_most, plot_into};
 use crate::scenario::{Scenario, SolidFlags};
-use crate::sim::{BackendKind, Simulation, State};
+use crate::sim::{BackendKind, State};
 use std::path::Path;
 use std::time::Instant;
 
@@ -113,12 +113,7 @@ pub fn run(
     progress: bool,
     frames: Option<(&Path, &str)>,
 ) -> Result<ScalpelOutcome, ValidationError> {
-    let mut frames = frames.and_then(|(dir, prefix)| Frames::new(dir, prefix));
-    let gpu = match (&frames, backend) {
-        (Some(f), BackendKind::Gpu) => Some(f.ctx.clone()),
-        _ => None,
-    };
-    let mut sim = if gpu.is_some() { Simulation::with_gpu(sc, gpu)? } else { Simulation::new(sc, backend)? };
+    let (mut sim, mut frames) = simulation_with_frames(sc, backend, frames)?;
     sim.relax(|_| {})?;
     if let Some(f) = &mut frames {
         f.shoot(&sim, "relaxed");
