@@ -218,8 +218,9 @@ enum Cmd {
     Validate {
         /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever; wicking,
         /// liver_scalpel and projectile run only when named: the three fabric cases of SPEC §7.12,
-        /// ≈ 45 min with --quick on a CPU; the liver cut twice, SPEC §9.3 L1/L2, ≈ 2.5 h; the
-        /// projectile of SPEC §7.10 for 1 s).
+        /// ≈ 45 min with --quick on a CPU; the liver cut twice, SPEC §9.3 L1/L2, ≈ 2.5 h —
+        /// liver_scalpel_L1 or liver_scalpel_L2 runs one of the two; the projectile of SPEC §7.10
+        /// for 1 s).
         #[arg(long)]
         case: Option<String>,
         /// Reduced resolutions (what the test suite runs).

@@ -25,14 +25,15 @@ pub const CANTILEVER_2D: &str = include_str!("../../assets/scenarios/cantilever_
 pub const CASES: [&str; 5] = ["poiseuille", "brinkman", "convergence", "hydrostatic", "cantilever"];
 
 /// Cases run only when named with `--case` (each is tens of minutes on a CPU): the wicking set of SPEC
-/// §7.12 (W1–W3), the liver cut by the scalpel (SPEC §9.3, L1 and L2) and the projectile (SPEC §7.10).
-pub const EXTRA_CASES: [&str; 3] = ["wicking", "liver_scalpel", "projectile"];
+/// §7.12 (W1–W3), the liver cut by the scalpel (SPEC §9.3: L1 and L2, or one of them alone) and the
+/// projectile (SPEC §7.10).
+pub const EXTRA_CASES: [&str; 5] = ["wicking", "liver_scalpel", "liver_scalpel_L1", "liver_scalpel_L2", "projectile"];
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ValidationError {
     #[error(
-        "unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever, wicking, liver_scalpel, projectile"
+        "unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever, wicking, liver_scalpel, liver_scalpel_L1, liver_scalpel_L2, projectile"
     )]
     UnknownCase(String),
     #[error(transparent)]
@@ -131,7 +132,15 @@ pub fn run_validation(
             "convergence" => convergence(&ctx)?,
             "hydrostatic" => hydrostatic(&ctx)?,
             "wicking" => super::wicking::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
-            "liver_scalpel" => super::scalpel::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
+            "liver_scalpel" | "liver_scalpel_L1" | "liver_scalpel_L2" => {
+                use super::scalpel::Variant;
+                let variants: &[Variant] = match name {
+                    "liver_scalpel_L1" => &[Variant::Thesis],
+                    "liver_scalpel_L2" => &[Variant::Product],
+                    _ => &[Variant::Product, Variant::Thesis],
+                };
+                super::scalpel::validate(variants, ctx.quick, ctx.backend, ctx.out, ctx.progress)?
+            }
             "projectile" => super::projectile::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
             _ => cantilever(&ctx)?,
         };
