@@ -246,6 +246,8 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             set.mass.push(mass);
         }
     };
+    // Liquid generated inside meshes: kept beneath the capsule below.
+    let mut mesh_liquid: Vec<std::ops::Range<usize>> = Vec::new();
     for spec in &s.particles {
         match spec {
             Generator::Box { phase, min, max, velocity, .. } => {
@@ -282,7 +284,10 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
                     for (phase, dx, mass) in
                         [(Phase::Solid, g.dx_solid, g.mass_solid), (Phase::Liquid, g.dx_liquid, g.mass_liquid)]
                     {
-                        let pts = super::mesh::sample_interior(&mesh, dx, [0.5 * dx; 3]);
+                        let pts = super::mesh::sample_interior(&mesh, dx, mesh_lattice_offset(phase, dx));
+                        if phase == Phase::Liquid {
+                            mesh_liquid.push(g.liquid.pos.len()..g.liquid.pos.len() + pts.len());
+                        }
                         let set = if phase == Phase::Solid { &mut g.solid } else { &mut g.liquid };
                         for p in pts {
                             set.vel.push([0.0; 3]);
@@ -295,7 +300,11 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
         }
     }
     let membrane = match &s.membrane {
-        Some(m) if !g.solid.pos.is_empty() => add_membrane(&mut g, m, d),
+        Some(m) if !g.solid.pos.is_empty() => {
+            let (flags, capsule) = add_membrane(&mut g, m, d);
+            keep_liquid_beneath_capsule(&mut g, &mesh_liquid, &capsule);
+            flags
+        }
         _ => vec![false; g.solid.pos.len()],
     };
     g.solid_flags = g
@@ -368,11 +377,88 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
     g
 }
 
+/// Lattice offset of a perfused mesh's phases: the solid lattice is cell-centred (offset Δx/2), the
+/// liquid lattice sits half a spacing from it, so that the perfusing liquid interleaves with the tissue
+/// skeleton instead of sitting on it — and its outer layer lies beneath the capsule, not in it.
+pub fn mesh_lattice_offset(phase: Phase, dx: f64) -> V3 {
+    match phase {
+        Phase::Solid => [0.5 * dx; 3],
+        Phase::Liquid => [0.0; 3],
+    }
+}
+
+/// Depth below the capsule [in units of Δx_s] that a perfusing liquid particle must have at generation.
+pub const LIQUID_CAPSULE_SETBACK: f64 = 0.45;
+
+/// Removes the mesh-generated liquid particles (`ranges`) that lie in or outside the capsule layer: a
+/// particle is kept only when it is at least [`LIQUID_CAPSULE_SETBACK`]·Δx_s beneath the capsule, measured
+/// along the outward normals of the nearest membrane parents. A liquid particle in the membrane plane feels the
+/// membrane's repulsion (SPEC §4.1, §4.5: the membrane is the liquid's virtual boundary) only
+/// tangentially, while the pressure of the liquid behind it pushes it out: under the weight of the
+/// hanging liver such particles leaked through the capsule's flat visceral face at rest. The liquid of
+/// the organ is the liquid *enclosed* by the capsule.
+fn keep_liquid_beneath_capsule(g: &mut GeneratedParticles, ranges: &[std::ops::Range<usize>], capsule: &[(V3, V3)]) {
+    use std::collections::HashMap;
+    if ranges.is_empty() || capsule.is_empty() || g.dx_solid <= 0.0 {
+        return;
+    }
+    let radius = 2.0 * g.h_solid.max(g.h_liquid);
+    let cell = |p: &V3| -> [i64; 3] {
+        [(p[0] / radius).floor() as i64, (p[1] / radius).floor() as i64, (p[2] / radius).floor() as i64]
+    };
+    let mut bins: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+    for (k, (p, _)) in capsule.iter().enumerate() {
+        bins.entry(cell(p)).or_default().push(k);
+    }
+    let setback = LIQUID_CAPSULE_SETBACK * g.dx_solid;
+    // Depth of x beneath the capsule: the largest depth along the outward normals of the capsule parents
+    // nearest to x (those within Δx_s/4 of the nearest, so that lattice ties are all counted — a
+    // particle diagonally inside a convex corner is a membrane parent too, §4.5, and sees the liquid of
+    // its corner cell outside itself).
+    let beneath = |x: &V3| -> bool {
+        let c = cell(x);
+        let mut near: Vec<(f64, usize)> = Vec::new();
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    for &k in bins.get(&[c[0] + dx, c[1] + dy, c[2] + dz]).into_iter().flatten() {
+                        let q = capsule[k].0;
+                        let r = (0..3).map(|a| (q[a] - x[a]).powi(2)).sum::<f64>().sqrt();
+                        if r < radius {
+                            near.push((r, k));
+                        }
+                    }
+                }
+            }
+        }
+        // No capsule particle within the support radius: deep inside.
+        let Some(r0) = near.iter().map(|&(r, _)| r).reduce(f64::min) else { return true };
+        let depth = near
+            .iter()
+            .filter(|&&(r, _)| r <= r0 + 0.25 * g.dx_solid)
+            .map(|&(_, k)| {
+                let (q, n) = capsule[k];
+                (0..3).map(|a| (q[a] - x[a]) * n[a]).sum::<f64>()
+            })
+            .fold(f64::MIN, f64::max);
+        depth >= setback
+    };
+    let in_mesh = |i: usize| ranges.iter().any(|r| r.contains(&i));
+    let keep: Vec<bool> = (0..g.liquid.pos.len()).map(|i| !in_mesh(i) || beneath(&g.liquid.pos[i])).collect();
+    fn kept<T: Copy>(v: &[T], keep: &[bool]) -> Vec<T> {
+        v.iter().zip(keep).filter(|(_, k)| **k).map(|(x, _)| *x).collect()
+    }
+    g.liquid.pos = kept(&g.liquid.pos, &keep);
+    g.liquid.vel = kept(&g.liquid.vel, &keep);
+    g.liquid.mass = kept(&g.liquid.mass, &keep);
+}
+
 /// Membrane detection and boundary-resolution enhancement (thesis §3.1.2–3.1.3, SPEC §4.5): marks solid
 /// particles whose neighbourhood centre of mass (radius R_s, self included) is offset by more than δ_mem,
 /// then adds `count` children per membrane particle on its tangent plane, sharing the parent's mass
-/// equally. Returns the membrane flag of every (old and new) solid particle.
-fn add_membrane(g: &mut GeneratedParticles, m: &super::Membrane, d: usize) -> Vec<bool> {
+/// equally. Returns the membrane flag of every (old and new) solid particle and each membrane parent's position
+/// and outward normal.
+fn add_membrane(g: &mut GeneratedParticles, m: &super::Membrane, d: usize) -> (Vec<bool>, Vec<(V3, V3)>) {
     use std::collections::HashMap;
     let radius = 2.0 * g.h_solid;
     let delta = m.threshold * g.dx_solid;
@@ -412,6 +498,7 @@ fn add_membrane(g: &mut GeneratedParticles, m: &super::Membrane, d: usize) -> Ve
         offsets.push((i, off, len));
     }
     let mut flags = vec![false; pos.len()];
+    let mut capsule = Vec::new();
     let share = 1.0 / (membrane_children(m, d) as f64 + 1.0);
     let r_e = m.radius * g.dx_solid;
     for &(i, off, len) in &offsets {
@@ -420,6 +507,7 @@ fn add_membrane(g: &mut GeneratedParticles, m: &super::Membrane, d: usize) -> Ve
         }
         flags[i] = true;
         let n_hat = [off[0] / len, off[1] / len, off[2] / len];
+        capsule.push((pos[i], n_hat));
         let (t1, t2) = tangent_basis(n_hat, d);
         let (vel, mass) = (g.solid.vel[i], g.solid.mass[i] * share);
         g.solid.mass[i] = mass;
@@ -441,7 +529,7 @@ fn add_membrane(g: &mut GeneratedParticles, m: &super::Membrane, d: usize) -> Ve
             flags.push(true);
         }
     }
-    flags
+    (flags, capsule)
 }
 
 /// Children per membrane particle: N_e in 3-D; in 2-D the "circle" is the two points x ± r_e t1 (SPEC §4.5).

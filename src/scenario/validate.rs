@@ -413,8 +413,10 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
                     }
                 }
                 let mut count = 0;
-                for dx in [phase_dx(Phase::Solid, dx_l, dx_s), phase_dx(Phase::Liquid, dx_l, dx_s)] {
-                    count += super::mesh::try_sample_interior(&mesh, dx, [0.5 * dx; 3]).map_err(&fail)?.len();
+                for phase in [Phase::Solid, Phase::Liquid] {
+                    let dx = phase_dx(phase, dx_l, dx_s);
+                    let offset = super::generate::mesh_lattice_offset(phase, dx);
+                    count += super::mesh::try_sample_interior(&mesh, dx, offset).map_err(&fail)?.len();
                 }
                 (count, vec![(Phase::Solid, *solid_fraction), (Phase::Liquid, *liquid_fraction)])
             }
