@@ -2,7 +2,8 @@
 //! as one `perfuse validate --case dmd`: each scenario runs headless with its frames every 0.01 s, exact
 //! DMD (5.1)–(5.6) is fitted at full rank on the particle positions, reconstructed with the §5.3.1
 //! stabilisation (5.7), and the acceptance rows of both sections (and issue 9's 2 % on the dominant
-//! frequency) are reported. Opt-in: the standard records (50 s and 10 s) take about an hour on a CPU.
+//! frequency) are reported. Opt-in: the standard records (50 s and 10 s) take about an hour on a CPU, the
+//! `--quick` ones (20 s and 4 s) about half an hour.
 
 use super::dmd::{self, AmplitudeFit, DmdModel, FrameFields, RankSelection, Snapshots};
 use super::validate::{CaseResult, ValidationError, at_least, at_most};
