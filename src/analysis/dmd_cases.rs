@@ -187,14 +187,16 @@ fn run_case(
     summarise(&model, &s, d.singular_values(), judged_s).map_err(|e| io(&e, &dmd_dir))
 }
 
-/// SPEC §7.13 and §7.14: the standard records (50 s and 10 s) or, with `quick`, 10 s and 4 s.
+/// SPEC §7.13 and §7.14: the standard records (50 s and 10 s) or, with `quick`, the judged ten periods of
+/// the wall (20 s; a 10-s record's largest oscillating mode was 0.32 Hz, the record too short to separate
+/// the forced response from the start-up transient) and 4 s of the dam.
 pub fn validate(
     quick: bool,
     backend: BackendKind,
     out: &Path,
     progress: bool,
 ) -> Result<Vec<CaseResult>, ValidationError> {
-    let (wall_s, dam_s) = if quick { (10.0, 4.0) } else { (50.0, 10.0) };
+    let (wall_s, dam_s) = if quick { (WALL_JUDGED_S, 4.0) } else { (50.0, 10.0) };
     let started = Instant::now();
     let w = run_case(
         OSCILLATING_WALL,
