@@ -6,7 +6,7 @@
 //! `--quick` ones (20 s and 4 s) about half an hour.
 
 use super::dmd::{self, AmplitudeFit, DmdModel, FrameFields, RankSelection, Snapshots};
-use super::validate::{CaseResult, ValidationError, at_least, at_most};
+use super::validate::{CaseResult, ValidationError, at_least, at_most, reported};
 use crate::output::{RunLength, RunOptions, run_headless};
 use crate::scenario::Scenario;
 use crate::sim::BackendKind;
@@ -126,18 +126,6 @@ pub fn dam_rows(c: &DmdCase, wall_case: Option<&DmdCase>, wall: f64) -> Vec<Case
         None => rows.push(reported(n, &r, "fraction_abs_lambda_below_0.99", c.fraction_inside_099, wall)),
     }
     rows
-}
-
-fn reported(name: &str, resolution: &str, metric: &str, value: f64, wall: f64) -> CaseResult {
-    CaseResult {
-        name: name.into(),
-        resolution: resolution.into(),
-        metric: format!("{metric} (reported)"),
-        value,
-        tolerance: f64::NAN,
-        pass: true,
-        wall_time_s: wall,
-    }
 }
 
 /// Runs one scenario for `record_s` with frames into `out/<tag>_frames`, fits full-rank DMD on the positions,
