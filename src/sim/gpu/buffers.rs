@@ -8,8 +8,10 @@ use super::passes::GridOf;
 use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
-/// Smallest buffer size: zero-sized buffers cannot be bound, and empty sets still bind theirs.
-const MIN_BYTES: u64 = 16;
+/// Smallest buffer size: zero-sized buffers cannot be bound, empty sets still bind theirs, and a
+/// runtime-sized array must hold one element of its struct (the largest, `StressGpu`, is 96 bytes; an
+/// empty object or motion table is bound as one zeroed 80-byte `ObjectGpu` / `MotionGpu`).
+const MIN_BYTES: u64 = 256;
 
 /// All simulation buffers by slot; the grid-generic slots resolve per set.
 pub struct SimBuffers {
