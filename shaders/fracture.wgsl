@@ -68,8 +68,11 @@ fn fracture_apply(@builtin(global_invocation_id) gid: vec3<u32>) {
         let xj = solid_pos[j].xyz;
         let d = min_image(xi - xj);
         if (dot3(d, d) <= limit2 && !bond_cut(i, j, xi, xj)) {
-            bond_table[i * cap + keep] = j;
-            bond_limit[i * cap + keep] = limit2;
+            // compact only behind a broken bond: an intact table is not rewritten every step
+            if (keep != k) {
+                bond_table[i * cap + keep] = j;
+                bond_limit[i * cap + keep] = limit2;
+            }
             keep += 1u;
         }
     }
