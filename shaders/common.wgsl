@@ -6,7 +6,7 @@
 //   `src/sim/gpu/bindings.rs`. Each entry point uses a subset; its pipeline layout lists exactly that
 //   subset (`passes.rs`).
 // * The kernels of thesis §2.2.1 (SPEC §2), line for line as `src/sim/kernels.rs`, plus the neighbour
-//   walk of `src/sim/cpu/grid.rs` (27 cells in the order dz, dy, dx ∈ -1..=1, then ascending index).
+//   walk of `src/sim/cpu/grid.rs` (125 cells in the order dz, dy, dx ∈ -2..=2, then ascending index).
 //
 // Float arithmetic is written out (no dot()/length()/matrix products) so that each operation happens
 // in the same order as the glam code of the CPU twin.
@@ -236,6 +236,15 @@ struct StressGpu {
     art: Mat3Gpu,
 }
 
+// Mirrors `CellEntry`: one entry of a set's cell list — the particle's index and its position when the
+// list was built (the positions do not change between a grid build and the neighbour loops that use it),
+// so a neighbour loop tests distances on consecutive memory and loads per-particle data only for the
+// particles inside the kernel support.
+struct CellEntry {
+    pos: vec3<f32>,
+    id: u32,
+}
+
 // Mirrors `GridSet`: the particle set a grid pass instance bins.
 struct GridSet {
     n: u32,
@@ -301,19 +310,21 @@ const JACOBI_SWEEPS: u32 = 6u;
 @group(0) @binding(23) var<storage, read_write> boundary_vel: array<vec4<f32>>;
 // xyz rest position, w object index (bits)
 @group(0) @binding(24) var<storage, read_write> boundary_pos0: array<vec4<f32>>;
-@group(0) @binding(25) var<storage, read_write> liquid_order: array<u32>;
+@group(0) @binding(25) var<storage, read_write> liquid_order: array<CellEntry>;
 @group(0) @binding(26) var<storage, read_write> liquid_cell_start: array<u32>;
-@group(0) @binding(27) var<storage, read_write> solid_order: array<u32>;
+@group(0) @binding(27) var<storage, read_write> solid_order: array<CellEntry>;
 @group(0) @binding(28) var<storage, read_write> solid_cell_start: array<u32>;
-@group(0) @binding(29) var<storage, read_write> boundary_order: array<u32>;
+@group(0) @binding(29) var<storage, read_write> boundary_order: array<CellEntry>;
 @group(0) @binding(30) var<storage, read_write> boundary_cell_start: array<u32>;
 // grid passes: the set being binned (one bind group per set)
 @group(0) @binding(31) var<uniform> grid_set: GridSet;
 @group(0) @binding(32) var<storage, read_write> grid_pos: array<vec4<f32>>;
-@group(0) @binding(33) var<storage, read_write> grid_order: array<u32>;
+@group(0) @binding(33) var<storage, read_write> grid_order: array<CellEntry>;
 @group(0) @binding(34) var<storage, read_write> grid_cell_start: array<u32>;
 @group(0) @binding(35) var<storage, read_write> grid_cell_of: array<u32>;
 @group(0) @binding(36) var<storage, read_write> grid_cursor: array<atomic<u32>>;
+// three-phase prefix sum: per-block counts, then the blocks' offsets (one entry per GRID_WG cells)
+@group(0) @binding(46) var<storage, read_write> grid_block_sums: array<u32>;
 // batched stepping (batch.wgsl): control block, motion table, indirect dispatch arguments
 @group(0) @binding(37) var<storage, read_write> batch: BatchState;
 @group(0) @binding(38) var<storage, read_write> motions: array<MotionGpu>;
@@ -584,18 +595,23 @@ fn cell_index(c: vec3<i32>) -> u32 {
     return u32(c.x) + params.grid_n.x * (u32(c.y) + params.grid_n.y * u32(c.z));
 }
 
-// Range of neighbour-cell offsets k (k = 9(dz+1) + 3(dy+1) + (dx+1)): 27 cells in 3-D, 9 in 2-D.
+// Cells per search radius (twin: grid::GRID_REACH): the neighbour block is ±GRID_REACH cells per axis.
+const GRID_REACH: i32 = 2;
+// Cells per axis of the neighbour block.
+const NBR_SIDE: u32 = 5u;
+
+// Range of neighbour-cell offsets k (k = 25(dz+2) + 5(dy+2) + (dx+2)): 125 cells in 3-D, 25 in 2-D.
 fn nbr_begin() -> u32 {
-    return select(9u, 0u, params.switches.x != 0u);
+    return select(2u * NBR_SIDE * NBR_SIDE, 0u, params.switches.x != 0u);
 }
 
 fn nbr_end() -> u32 {
-    return select(18u, 27u, params.switches.x != 0u);
+    return select(3u * NBR_SIDE * NBR_SIDE, NBR_SIDE * NBR_SIDE * NBR_SIDE, params.switches.x != 0u);
 }
 
 // Cell index of neighbour offset k of cell c, or -1 when it lies outside a non-periodic axis.
 fn nbr_cell(c: vec3<i32>, k: u32) -> i32 {
-    let off = vec3<i32>(i32(k % 3u) - 1, i32((k / 3u) % 3u) - 1, i32(k / 9u) - 1);
+    let off = vec3<i32>(i32(k % NBR_SIDE), i32((k / NBR_SIDE) % NBR_SIDE), i32(k / (NBR_SIDE * NBR_SIDE))) - GRID_REACH;
     var nc = c + off;
     for (var a = 0; a < 3; a++) {
         let n = i32(params.grid_n[a]);
@@ -608,6 +624,38 @@ fn nbr_cell(c: vec3<i32>, k: u32) -> i32 {
         }
     }
     return i32(cell_index(nc));
+}
+
+// Whether the rows of c's neighbour block wrap around a periodic x axis.
+fn nbr_wraps(c: vec3<i32>) -> bool {
+    let nx = i32(params.grid_n.x);
+    return params.period.x > 0.0 && (c.x < GRID_REACH || c.x >= nx - GRID_REACH);
+}
+
+// Stride of the neighbour-offset loop `for (k = nbr_begin(); k < nbr_end(); k += nbr_step(c))`: a whole
+// row (dx = −2 … 2) per k where the row's cells are consecutive, one cell per k where x wraps.
+fn nbr_step(c: vec3<i32>) -> u32 {
+    return select(NBR_SIDE, 1u, nbr_wraps(c));
+}
+
+// Neighbour offset k (a row start, or any k where x wraps — see nbr_step) as a span of consecutive cells
+// [lo, hi] (lo = −1: nothing to visit). The cells dx = −2 … 2 of one row (dy, dz) have consecutive
+// indices unless x wraps, so a row is one range of a cell list; where a periodic x wraps, each k is its
+// own cell as in nbr_cell. Either way the particles come in nbr_cell's canonical order.
+fn nbr_span(c: vec3<i32>, k: u32) -> vec2<i32> {
+    let nx = i32(params.grid_n.x);
+    if (nbr_wraps(c)) {
+        let one = nbr_cell(c, k);
+        return vec2<i32>(one, one);
+    }
+    // the row's centre cell (dx = 0), then its clipped x extent
+    let mid = nbr_cell(c, k + u32(GRID_REACH));
+    if (mid < 0) {
+        return vec2<i32>(-1, -1);
+    }
+    let lo = max(c.x - GRID_REACH, 0) - c.x;
+    let hi = min(c.x + GRID_REACH, nx - 1) - c.x;
+    return vec2<i32>(mid + lo, mid + hi);
 }
 
 // Minimum-image difference on periodic axes (SPEC §4.3).

@@ -21,53 +21,54 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ci = cell_coords(xi);
     let kb = nbr_begin();
     let ke = nbr_end();
+    let kstep = nbr_step(ci);
     let r2l = kl.r * kl.r;
     let r2x = kx.r * kx.r;
     var rho = 0.0;
     // liquid (2.46)
-    for (var k = kb; k < ke; k++) {
-        let c = nbr_cell(ci, k);
-        if (c < 0) { continue; }
-        for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
-            let j = liquid_order[q];
-            let pj = liquid_pos[j];
-            let xij = min_image(xi - pj.xyz);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+            let e = liquid_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2l) {
-                rho += pj.w * w_poly6(kl, sqrt(r2));
+                rho += liquid_pos[j].w * w_poly6(kl, sqrt(r2));
             }
         }
     }
     // wall particles (liquid-equivalent mass)
-    for (var k = kb; k < ke; k++) {
-        let c = nbr_cell(ci, k);
-        if (c < 0) { continue; }
-        for (var q = boundary_cell_start[c]; q < boundary_cell_start[c + 1]; q++) {
-            let j = boundary_order[q];
-            let pj = boundary_pos[j];
-            let xij = min_image(xi - pj.xyz);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
+            let e = boundary_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2l) {
-                rho += pj.w * w_poly6(kl, sqrt(r2));
+                rho += boundary_pos[j].w * w_poly6(kl, sqrt(r2));
             }
         }
     }
     // One pass over the solid (R_× ≥ R_l): membrane particles as liquid boundary, and nˢ (D-8).
     var sum_s = 0.0;
-    for (var k = kb; k < ke; k++) {
-        let c = nbr_cell(ci, k);
-        if (c < 0) { continue; }
-        for (var q = solid_cell_start[c]; q < solid_cell_start[c + 1]; q++) {
-            let j = solid_order[q];
-            let pj = solid_pos[j];
-            let xij = min_image(xi - pj.xyz);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
+            let e = solid_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2x) {
                 let r = sqrt(r2);
                 if (r < kl.r && (solid_flags[j] & SOLID_MEMBRANE) != 0u) {
                     rho += solid_vel[j].w * w_poly6(kl, r);
                 }
-                sum_s += pj.w * w_poly6(kx, r);
+                sum_s += solid_pos[j].w * w_poly6(kx, r);
             }
         }
     }
@@ -98,28 +99,30 @@ fn density_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ci = cell_coords(xi);
     let kb = nbr_begin();
     let ke = nbr_end();
+    let kstep = nbr_step(ci);
     var drho = 0.0;
     // continuity (2.47) over current solid neighbours
-    for (var k = kb; k < ke; k++) {
-        let c = nbr_cell(ci, k);
-        if (c < 0) { continue; }
-        for (var q = solid_cell_start[c]; q < solid_cell_start[c + 1]; q++) {
-            let j = solid_order[q];
-            let pj = solid_pos[j];
-            let xij = min_image(xi - pj.xyz);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
+            let e = solid_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2s && j != i) {
-                drho += pj.w * dot3(vi - solid_vel[j].xyz, xij * grad_cubic_factor(ks, sqrt(r2)));
+                drho += solid_pos[j].w * dot3(vi - solid_vel[j].xyz, xij * grad_cubic_factor(ks, sqrt(r2)));
             }
         }
     }
     // ... and over B_s (solid-equivalent mass)
-    for (var k = kb; k < ke; k++) {
-        let c = nbr_cell(ci, k);
-        if (c < 0) { continue; }
-        for (var q = boundary_cell_start[c]; q < boundary_cell_start[c + 1]; q++) {
-            let j = boundary_order[q];
-            let xij = min_image(xi - boundary_pos[j].xyz);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
+            let e = boundary_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2s) {
                 let vb = boundary_vel[j];
@@ -130,16 +133,16 @@ fn density_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     var n_l = 1.0 - params.n_sat;
     if ((solid_flags[i] & SOLID_MEMBRANE) == 0u) {
         var sum = 0.0;
-        for (var k = kb; k < ke; k++) {
-            let c = nbr_cell(ci, k);
-            if (c < 0) { continue; }
-            for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
-                let j = liquid_order[q];
-                let pj = liquid_pos[j];
-                let xij = min_image(xi - pj.xyz);
+        for (var k = kb; k < ke; k += kstep) {
+            let c = nbr_span(ci, k);
+            if (c.x < 0) { continue; }
+            for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+                let e = liquid_order[q];
+                let j = e.id;
+                let xij = min_image(xi - e.pos);
                 let r2 = dot3(xij, xij);
                 if (r2 < r2x) {
-                    sum += pj.w * w_poly6(kx, sqrt(r2));
+                    sum += liquid_pos[j].w * w_poly6(kx, sqrt(r2));
                 }
             }
         }

@@ -112,19 +112,20 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ci = cell_coords(xi);
     let kb = nbr_begin();
     let ke = nbr_end();
+    let kstep = nbr_step(ci);
     let r2l = kl.r * kl.r;
     var a = vec3<f32>(0.0);
-    for (var k = kb; k < ke; k++) {
-        let c = nbr_cell(ci, k);
-        if (c < 0) { continue; }
-        for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
-            let j = liquid_order[q];
-            let pj4 = liquid_pos[j];
-            let xij = min_image(xi - pj4.xyz);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+            let e = liquid_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2l && j != i) {
                 let r = sqrt(r2);
-                let mj = pj4.w;
+                let mj = liquid_pos[j].w;
                 let dj = liquid_dens[j];
                 let vj = liquid_vel[j].xyz;
                 let grad = xij * grad_spiky_factor(kl, r);
@@ -142,20 +143,20 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    for (var k = kb; k < ke; k++) {
-        let c = nbr_cell(ci, k);
-        if (c < 0) { continue; }
-        for (var q = boundary_cell_start[c]; q < boundary_cell_start[c + 1]; q++) {
-            let j = boundary_order[q];
-            let pb = boundary_pos[j];
-            let xij = min_image(xi - pb.xyz);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
+            let e = boundary_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2l) {
                 let obj = bitcast<u32>(boundary_pos0[j].w);
-                let slip = no_slip_factor(obj, xi, pb.xyz);
+                let slip = no_slip_factor(obj, xi, e.pos);
                 let o = objects[obj];
                 let r = sqrt(r2);
-                a += liquid_from_boundary(rho, pr, n_l, vi, pb.w, boundary_vel[j].xyz, xij, r, o.density, o.pressure, slip, g);
+                a += liquid_from_boundary(rho, pr, n_l, vi, boundary_pos[j].w, boundary_vel[j].xyz, xij, r, o.density, o.pressure, slip, g);
                 if (params.cohesion_lb > 0.0 && r > 0.0) {
                     // adhesion (3.3) to walls and plates
                     a -= xij * (cohesion_pair(params.cohesion_lb, kl.r, r) * inv_m / r);
@@ -166,13 +167,13 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     // One pass over the solid (R_× ≥ R_l): membrane particles as boundary, and friction (2.17).
     let r2x = kx.r * kx.r;
     var f = vec3<f32>(0.0);
-    for (var k = kb; k < ke; k++) {
-        let c = nbr_cell(ci, k);
-        if (c < 0) { continue; }
-        for (var q = solid_cell_start[c]; q < solid_cell_start[c + 1]; q++) {
-            let j = solid_order[q];
-            let pj4 = solid_pos[j];
-            let xij = min_image(xi - pj4.xyz);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
+            let e = solid_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2x) {
                 let r = sqrt(r2);
@@ -183,7 +184,7 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let dj = solid_dens[j];
                 if (params.kbar > 0.0) {
                     let kf = friction_coefficient(n_s, dj.z);
-                    f += (vi - vj.xyz) * (pj4.w / dj.x * kf * w_poly6(kx, r));
+                    f += (vi - vj.xyz) * (solid_pos[j].w / dj.x * kf * w_poly6(kx, r));
                 }
                 if (params.wicking > 0.0 && r > 0.0) {
                     // liquid–void attraction (3.4) toward unsaturated solid, per unit volume ÷ ρ_i
@@ -244,13 +245,14 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ci = cell_coords(xi);
     let kb = nbr_begin();
     let ke = nbr_end();
-    for (var k = kb; k < ke; k++) {
-        let c = nbr_cell(ci, k);
-        if (c < 0) { continue; }
-        for (var q = solid_cell_start[c]; q < solid_cell_start[c + 1]; q++) {
-            let j = solid_order[q];
-            let pj4 = solid_pos[j];
-            let xij = min_image(xi - pj4.xyz);
+    let kstep = nbr_step(ci);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
+            let e = solid_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2s && j != i) {
                 let r = sqrt(r2);
@@ -264,17 +266,18 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 }
                 let pij = artificial_viscosity(vi - solid_vel[j].xyz, xij, r, ks.h, params.c_s, 0.5 * (rho + dj.x));
                 acc -= grad * pij;
-                a += acc * pj4.w;
+                a += acc * solid_pos[j].w;
             }
         }
     }
     // boundary contact (mirror pressure, SPEC §4.1) and artificial viscosity against walls
-    for (var k = kb; k < ke; k++) {
-        let c = nbr_cell(ci, k);
-        if (c < 0) { continue; }
-        for (var q = boundary_cell_start[c]; q < boundary_cell_start[c + 1]; q++) {
-            let j = boundary_order[q];
-            let xib = min_image(xi - boundary_pos[j].xyz);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
+            let e = boundary_order[q];
+            let j = e.id;
+            let xib = min_image(xi - e.pos);
             let r2 = dot3(xib, xib);
             if (r2 < r2s) {
                 let r = sqrt(r2);
@@ -298,23 +301,23 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         let r2x = kx.r * kx.r;
         var f = vec3<f32>(0.0);
         var fw = vec3<f32>(0.0);
-        for (var k = kb; k < ke; k++) {
-            let c = nbr_cell(ci, k);
-            if (c < 0) { continue; }
-            for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
-                let j = liquid_order[q];
-                let pj4 = liquid_pos[j];
-                let xij = min_image(xi - pj4.xyz);
+        for (var k = kb; k < ke; k += kstep) {
+            let c = nbr_span(ci, k);
+            if (c.x < 0) { continue; }
+            for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+                let e = liquid_order[q];
+                let j = e.id;
+                let xij = min_image(xi - e.pos);
                 let r2 = dot3(xij, xij);
                 if (r2 < r2x) {
                     let dj = liquid_dens[j];
                     let r = sqrt(r2);
                     if (params.kbar > 0.0) {
                         let kf = friction_coefficient(n_s, dj.z);
-                        f += (vi - liquid_vel[j].xyz) * (pj4.w / dj.x * kf * w_poly6(kx, r));
+                        f += (vi - liquid_vel[j].xyz) * (liquid_pos[j].w / dj.x * kf * w_poly6(kx, r));
                     }
                     if (params.wicking > 0.0 && r > 0.0) {
-                        fw -= xij * (pj4.w / dj.x * wicking_pair(kx.h, n_s, di.y, r) / r);
+                        fw -= xij * (liquid_pos[j].w / dj.x * wicking_pair(kx.h, n_s, di.y, r) / r);
                     }
                 }
             }
@@ -326,19 +329,19 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     if ((solid_flags[i] & SOLID_MEMBRANE) != 0u) {
         let r2l = kl.r * kl.r;
         var f = vec3<f32>(0.0);
-        for (var k = kb; k < ke; k++) {
-            let c = nbr_cell(ci, k);
-            if (c < 0) { continue; }
-            for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
-                let j = liquid_order[q];
-                let pj4 = liquid_pos[j];
-                let xji = min_image(xi - pj4.xyz);
+        for (var k = kb; k < ke; k += kstep) {
+            let c = nbr_span(ci, k);
+            if (c.x < 0) { continue; }
+            for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+                let e = liquid_order[q];
+                let j = e.id;
+                let xji = min_image(xi - e.pos);
                 let r2 = dot3(xji, xji);
                 if (r2 < r2l) {
                     let xjb = -xji;
                     let dj = liquid_dens[j];
                     let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, liquid_vel[j].xyz, vi4.w, vi, xjb, sqrt(r2), -1.0, 0.0, 1.0, g_l);
-                    f -= on_j * pj4.w;
+                    f -= on_j * liquid_pos[j].w;
                 }
             }
         }
@@ -366,16 +369,16 @@ fn forces_xsph_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ci = cell_coords(xi);
     let r2k = k.r * k.r;
     var d = vec3<f32>(0.0);
-    for (var kk = nbr_begin(); kk < nbr_end(); kk++) {
-        let c = nbr_cell(ci, kk);
-        if (c < 0) { continue; }
-        for (var q = liquid_cell_start[c]; q < liquid_cell_start[c + 1]; q++) {
-            let j = liquid_order[q];
-            let pj4 = liquid_pos[j];
-            let xij = min_image(xi - pj4.xyz);
+    for (var kk = nbr_begin(); kk < nbr_end(); kk += nbr_step(ci)) {
+        let c = nbr_span(ci, kk);
+        if (c.x < 0) { continue; }
+        for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+            let e = liquid_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2k && j != i) {
-                d += (liquid_vel[j].xyz - vi) * (pj4.w / (0.5 * (rho_i + liquid_dens[j].x)) * w_poly6(k, sqrt(r2)));
+                d += (liquid_vel[j].xyz - vi) * (liquid_pos[j].w / (0.5 * (rho_i + liquid_dens[j].x)) * w_poly6(k, sqrt(r2)));
             }
         }
     }
@@ -401,16 +404,16 @@ fn forces_xsph_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ci = cell_coords(xi);
     let r2k = k.r * k.r;
     var d = vec3<f32>(0.0);
-    for (var kk = nbr_begin(); kk < nbr_end(); kk++) {
-        let c = nbr_cell(ci, kk);
-        if (c < 0) { continue; }
-        for (var q = solid_cell_start[c]; q < solid_cell_start[c + 1]; q++) {
-            let j = solid_order[q];
-            let pj4 = solid_pos[j];
-            let xij = min_image(xi - pj4.xyz);
+    for (var kk = nbr_begin(); kk < nbr_end(); kk += nbr_step(ci)) {
+        let c = nbr_span(ci, kk);
+        if (c.x < 0) { continue; }
+        for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
+            let e = solid_order[q];
+            let j = e.id;
+            let xij = min_image(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2k && j != i) {
-                d += (solid_vel[j].xyz - vi) * (pj4.w / (0.5 * (rho_i + solid_dens[j].x)) * w_poly6(k, sqrt(r2)));
+                d += (solid_vel[j].xyz - vi) * (solid_pos[j].w / (0.5 * (rho_i + solid_dens[j].x)) * w_poly6(k, sqrt(r2)));
             }
         }
     }

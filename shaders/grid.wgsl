@@ -1,10 +1,12 @@
 // grid.wgsl — uniform-grid neighbour search (thesis §2.2.5, §2.2.9); twin: src/sim/cpu/grid.rs.
 //
 // Counting sort of one particle set (bound as grid_pos / grid_order / grid_cell_start):
-// grid_clear → grid_count (integer atomics only) → grid_scan (one workgroup, fixed order) →
+// grid_clear → grid_count (integer atomics only) → grid_scan_blocks · grid_scan_top · grid_scan_apply
+// (three-phase prefix sum, integer: fixed result) →
 // grid_scatter (atomic cursor: order inside a cell is arbitrary) → grid_sort_cells (insertion sort of
 // each cell's range by index). The result is the CPU's canonical list: cells ascending, ascending index
-// inside a cell, bit for bit.
+// inside a cell, bit for bit. Each entry also carries the particle's position (`CellEntry`), so the
+// neighbour loops read candidates from consecutive memory.
 #import common
 
 const GRID_WG: u32 = 64u;
@@ -31,18 +33,40 @@ fn grid_count(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 var<workgroup> scan_partial: array<u32, 256>;
+var<workgroup> scan_local: array<u32, 64>;
 
-// Exclusive prefix sum of the counts into grid_cell_start[0..=cells]; resets the cursors to the
-// cell starts for grid_scatter. One workgroup; each invocation owns a contiguous chunk of cells.
+// The prefix sum of the counts into grid_cell_start[0..=cells] in three phases, so that no single
+// workgroup walks all cells (the cell count grows as (domain / (R/2))³). Integer sums, so the result is
+// the CPU's sequential scan bit for bit. Phase 1: the count of each block of GRID_WG cells.
+@compute @workgroup_size(64)
+fn grid_scan_blocks(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+    let c = wid.x * GRID_WG + lid.x;
+    var n = 0u;
+    if (c < grid_set.cells) {
+        n = atomicLoad(&grid_cursor[c]);
+    }
+    scan_local[lid.x] = n;
+    workgroupBarrier();
+    if (lid.x == 0u) {
+        var sum = 0u;
+        for (var t = 0u; t < GRID_WG; t++) {
+            sum += scan_local[t];
+        }
+        grid_block_sums[wid.x] = sum;
+    }
+}
+
+// Phase 2 (one workgroup): the block counts become exclusive block offsets; the total goes to
+// grid_cell_start[cells]. Each invocation owns a contiguous chunk of blocks.
 @compute @workgroup_size(256)
-fn grid_scan(@builtin(local_invocation_id) lid: vec3<u32>) {
-    let cells = grid_set.cells;
-    let chunk = (cells + SCAN_WG - 1u) / SCAN_WG;
-    let begin = min(lid.x * chunk, cells);
-    let end = min(begin + chunk, cells);
+fn grid_scan_top(@builtin(local_invocation_id) lid: vec3<u32>) {
+    let blocks = (grid_set.cells + GRID_WG - 1u) / GRID_WG;
+    let chunk = (blocks + SCAN_WG - 1u) / SCAN_WG;
+    let begin = min(lid.x * chunk, blocks);
+    let end = min(begin + chunk, blocks);
     var sum = 0u;
-    for (var c = begin; c < end; c++) {
-        sum += atomicLoad(&grid_cursor[c]);
+    for (var b = begin; b < end; b++) {
+        sum += grid_block_sums[b];
     }
     scan_partial[lid.x] = sum;
     workgroupBarrier();
@@ -56,14 +80,40 @@ fn grid_scan(@builtin(local_invocation_id) lid: vec3<u32>) {
     }
     workgroupBarrier();
     var run = scan_partial[lid.x];
-    for (var c = begin; c < end; c++) {
-        let n = atomicLoad(&grid_cursor[c]);
-        grid_cell_start[c] = run;
-        atomicStore(&grid_cursor[c], run);
+    for (var b = begin; b < end; b++) {
+        let n = grid_block_sums[b];
+        grid_block_sums[b] = run;
         run += n;
     }
     if (lid.x == SCAN_WG - 1u) {
-        grid_cell_start[cells] = run;
+        grid_cell_start[grid_set.cells] = run;
+    }
+}
+
+// Phase 3: each block's exclusive scan from its offset into grid_cell_start; the cursors are reset to
+// the cell starts for grid_scatter.
+@compute @workgroup_size(64)
+fn grid_scan_apply(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+    let c = wid.x * GRID_WG + lid.x;
+    var n = 0u;
+    if (c < grid_set.cells) {
+        n = atomicLoad(&grid_cursor[c]);
+    }
+    scan_local[lid.x] = n;
+    workgroupBarrier();
+    if (lid.x == 0u) {
+        var acc = grid_block_sums[wid.x];
+        for (var t = 0u; t < GRID_WG; t++) {
+            let v = scan_local[t];
+            scan_local[t] = acc;
+            acc += v;
+        }
+    }
+    workgroupBarrier();
+    if (c < grid_set.cells) {
+        let start = scan_local[lid.x];
+        grid_cell_start[c] = start;
+        atomicStore(&grid_cursor[c], start);
     }
 }
 
@@ -74,7 +124,7 @@ fn grid_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let slot = atomicAdd(&grid_cursor[grid_cell_of[i]], 1u);
-    grid_order[slot] = i;
+    grid_order[slot] = CellEntry(grid_pos[i].xyz, i);
 }
 
 // Restores ascending index inside each cell (the CPU scatter visits particles in ascending order).
@@ -94,7 +144,7 @@ fn grid_sort_cells(@builtin(global_invocation_id) gid: vec3<u32>) {
                 break;
             }
             let u = grid_order[w - 1u];
-            if (u <= v) {
+            if (u.id <= v.id) {
                 break;
             }
             grid_order[w] = u;

@@ -13,6 +13,7 @@ use perfuse::scenario::generate;
 use perfuse::sim::cpu::grid::Neighbours;
 use perfuse::sim::cpu::{CpuSolver, Nbrs, density, forces, solid};
 use perfuse::sim::gpu::bindings::Slot;
+use perfuse::sim::gpu::gpu_types::CellEntry;
 use perfuse::sim::gpu::passes::{self, Stage};
 use perfuse::sim::gpu::{GpuContext, GpuSolver};
 use perfuse::sim::params::Params;
@@ -118,6 +119,16 @@ fn gpu_from(ctx: GpuContext, cpu: &CpuSolver) -> GpuSolver {
     }
 }
 
+/// Positions of one set as `[f32; 3]` (the CPU twin of the positions the cell entries carry).
+fn positions(cpu: &CpuSolver, set: &str) -> Vec<[f32; 3]> {
+    let p = match set {
+        "liquid" => &cpu.st.liquid.x,
+        "solid" => &cpu.st.solid.x,
+        _ => &cpu.st.boundary.x,
+    };
+    p.iter().map(|v| v.to_array()).collect()
+}
+
 /// grid_count/scan/scatter/sort_cells: integer passes match bit for bit, at t = 0 and after 30 steps.
 #[test]
 fn grid_cell_lists_bit_identical() {
@@ -131,11 +142,43 @@ fn grid_cell_lists_bit_identical() {
                 ("solid", &cpu.grids.solid, Slot::SolidOrder, Slot::SolidCellStart),
                 ("boundary", &cpu.grids.boundary, Slot::BoundaryOrder, Slot::BoundaryCellStart),
             ] {
-                let o: Vec<u32> = gpu.read_slot(order, list.order.len()).unwrap();
+                let e: Vec<CellEntry> = gpu.read_slot(order, list.order.len()).unwrap();
                 let s: Vec<u32> = gpu.read_slot(start, cells).unwrap();
                 assert_eq!(s, list.cell_start, "{name} cell_start after {steps} steps");
+                let o: Vec<u32> = e.iter().map(|e| e.id).collect();
                 assert_eq!(o, list.order, "{name} order after {steps} steps");
+                // each entry carries its particle's position, bit for bit
+                let x = positions(&cpu, name);
+                for (q, e) in e.iter().enumerate() {
+                    assert_eq!(e.pos, x[e.id as usize], "{name} entry {q} position after {steps} steps");
+                }
             }
+        }
+    });
+}
+
+/// The three-phase prefix sum over more than 256 blocks of 64 cells (so each invocation of grid_scan_top
+/// owns several blocks): the perfused block in a domain widened to over 16 384 cells.
+#[test]
+fn grid_cell_lists_bit_identical_on_a_large_grid() {
+    gpu_test("grid_cell_lists_bit_identical_on_a_large_grid", |ctx| {
+        let mut sc = perfused_block();
+        for a in 0..3 {
+            let (lo, hi) = (sc.domain.min[a], sc.domain.max[a]);
+            let w = hi - lo;
+            (sc.domain.min[a], sc.domain.max[a]) = (lo - w, hi + w);
+        }
+        let cpu = solver_for(&sc);
+        let cells = cpu.params.grid.cell_count();
+        assert!(cells > 64 * 256, "{cells} cells: the test needs more than 256 blocks of 64");
+        let gpu = gpu_from(ctx, &cpu);
+        for (name, list, start) in [
+            ("liquid", &cpu.grids.liquid, Slot::LiquidCellStart),
+            ("solid", &cpu.grids.solid, Slot::SolidCellStart),
+            ("boundary", &cpu.grids.boundary, Slot::BoundaryCellStart),
+        ] {
+            let s: Vec<u32> = gpu.read_slot(start, cells + 1).unwrap();
+            assert_eq!(s, list.cell_start, "{name} cell_start on {cells} cells");
         }
     });
 }

@@ -170,11 +170,13 @@ impl Params {
             domain_max.z = 0.0;
         }
         let r_x = 2.0 * h_x as f32;
+        // cells of at least R_× / GRID_REACH: the neighbour block (± GRID_REACH cells) covers R_×
+        let cell_min = r_x / super::cpu::grid::GRID_REACH as f32;
         let mut gn = [1u32; 3];
-        let mut cell = [r_x; 3];
+        let mut cell = [cell_min; 3];
         for a in 0..d {
             let ext = domain_max[a] - domain_min[a];
-            let cells = (ext / r_x).floor().max(1.0);
+            let cells = (ext / cell_min).floor().max(1.0);
             gn[a] = cells as u32;
             cell[a] = ext / cells;
         }

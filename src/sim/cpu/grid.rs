@@ -2,12 +2,21 @@
 //!
 //! Each particle set (liquid, solid, boundary) is binned into the same grid by a counting sort:
 //! cell index → count → exclusive prefix sum → scatter. The scatter visits particles in ascending
-//! index, so inside a cell particles stay in ascending order: neighbour sums always run over the 27
-//! (9 in 2-D) cells in a fixed offset order, then ascending index — the canonical order both back-ends
-//! follow, which makes runs bit-reproducible.
+//! index, so inside a cell particles stay in ascending order: neighbour sums always run over the
+//! (2·[`GRID_REACH`] + 1)³ cells (125; 25 in 2-D) in a fixed offset order, then ascending index — the
+//! canonical order both back-ends follow, which makes runs bit-reproducible.
+//!
+//! A cell is half the largest search radius (`GRID_REACH` = 2 cells per radius): the 5³ block of cells
+//! around a particle holds 15.6 R³ of candidates against 27 R³ for radius-sized cells, 1.7 times fewer
+//! distance tests for the same neighbours, and the GPU walks each row of five consecutive cells as one
+//! range of the cell list.
 
 use crate::sim::params::GridDims;
 use glam::Vec3;
+
+/// Cells per search radius along each axis: the neighbour block is the cells within ±`GRID_REACH` of a
+/// particle's cell (`GRID_REACH` in `shaders/common.wgsl`).
+pub const GRID_REACH: i32 = 2;
 
 /// Cell-sorted view of one particle set.
 #[derive(Clone, Debug, Default)]
@@ -42,7 +51,7 @@ pub fn grid_cell_index(g: &GridDims, c: [i32; 3]) -> usize {
     (c[0] as usize) + g.n[0] as usize * ((c[1] as usize) + g.n[1] as usize * c[2] as usize)
 }
 
-/// grid_count · grid_scan · grid_scatter: builds the cell list of one set.
+/// grid_count · grid_scan_* · grid_scatter: builds the cell list of one set.
 pub fn grid_build(g: &GridDims, pos: &[Vec3], out: &mut CellList) {
     let cells = g.cell_count();
     out.cell_start.clear();
@@ -95,40 +104,54 @@ pub fn min_image(mut d: Vec3, period: Vec3) -> Vec3 {
 
 impl Neighbours<'_> {
     /// Calls `f(j, x_ij, r_ij)` for every particle j of the set with r_ij < radius, in canonical order.
+    /// A row of the neighbour block (dx = −GRID_REACH … GRID_REACH at one dy, dz) is one range of the
+    /// cell list unless a periodic x wraps (then cell by cell) — the walk of `nbr_span` in common.wgsl.
     #[inline]
     pub fn for_each(&self, xi: Vec3, radius: f32, mut f: impl FnMut(usize, Vec3, f32)) {
         let g = self.grid;
         let (c, _) = grid_cell_coords(g, xi);
-        let zr = if self.three_d { -1..=1 } else { 0..=0 };
+        let zr = if self.three_d { -GRID_REACH..=GRID_REACH } else { 0..=0 };
         let r2max = radius * radius;
+        let nx = g.n[0] as i32;
+        let wraps = self.period[0] > 0.0 && (c[0] < GRID_REACH || c[0] >= nx - GRID_REACH);
+        let mut visit = |first: usize, last: usize| {
+            let (s, e) = (self.list.cell_start[first] as usize, self.list.cell_start[last + 1] as usize);
+            for &j in &self.list.order[s..e] {
+                let j = j as usize;
+                let xij = min_image(xi - self.pos[j], self.period);
+                let r2 = xij.length_squared();
+                if r2 < r2max {
+                    f(j, xij, r2.sqrt());
+                }
+            }
+        };
         for dz in zr {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let mut nc = [c[0] + dx, c[1] + dy, c[2] + dz];
-                    let mut skip = false;
-                    for a in 0..3 {
-                        let n = g.n[a] as i32;
-                        if nc[a] < 0 || nc[a] >= n {
-                            if self.period[a] > 0.0 {
-                                nc[a] = nc[a].rem_euclid(n);
-                            } else {
-                                skip = true;
-                            }
+            for dy in -GRID_REACH..=GRID_REACH {
+                // y and z of the row (wrapped on periodic axes), or skip it
+                let mut yz = [c[1] + dy, c[2] + dz];
+                let mut skip = false;
+                for (a, v) in yz.iter_mut().enumerate() {
+                    let n = g.n[a + 1] as i32;
+                    if *v < 0 || *v >= n {
+                        if self.period[a + 1] > 0.0 {
+                            *v = v.rem_euclid(n);
+                        } else {
+                            skip = true;
                         }
                     }
-                    if skip {
-                        continue;
+                }
+                if skip {
+                    continue;
+                }
+                if wraps {
+                    for dx in -GRID_REACH..=GRID_REACH {
+                        let ci = grid_cell_index(g, [(c[0] + dx).rem_euclid(nx), yz[0], yz[1]]);
+                        visit(ci, ci);
                     }
-                    let ci = grid_cell_index(g, nc);
-                    let (s, e) = (self.list.cell_start[ci] as usize, self.list.cell_start[ci + 1] as usize);
-                    for &j in &self.list.order[s..e] {
-                        let j = j as usize;
-                        let xij = min_image(xi - self.pos[j], self.period);
-                        let r2 = xij.length_squared();
-                        if r2 < r2max {
-                            f(j, xij, r2.sqrt());
-                        }
-                    }
+                } else {
+                    let lo = grid_cell_index(g, [(c[0] - GRID_REACH).max(0), yz[0], yz[1]]);
+                    let hi = grid_cell_index(g, [(c[0] + GRID_REACH).min(nx - 1), yz[0], yz[1]]);
+                    visit(lo, hi);
                 }
             }
         }

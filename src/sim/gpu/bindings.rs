@@ -58,11 +58,13 @@ pub enum Slot {
     EmitFlow,
     /// Liquid particle ids (emitters add, sinks compact).
     LiquidId,
+    /// Grid passes: per-block cell counts, then block offsets, of the three-phase prefix sum.
+    GridBlockSums,
 }
 
 impl Slot {
     /// The slot with the highest binding number (sizes the slot table).
-    pub const LAST: Slot = Slot::LiquidId;
+    pub const LAST: Slot = Slot::GridBlockSums;
 
     /// Binding number in group 0 (common.wgsl).
     pub const fn binding(self) -> u32 {
@@ -118,6 +120,7 @@ impl Slot {
             Slot::EmitBlocked => "emit_blocked",
             Slot::EmitFlow => "emit_flow",
             Slot::LiquidId => "liquid_id",
+            Slot::GridBlockSums => "grid_block_sums",
         }
     }
 
@@ -162,5 +165,6 @@ mod tests {
         assert_eq!(Slot::IndirectArgs.binding(), 39);
         assert_eq!(Slot::BondLimit.binding(), 40);
         assert_eq!(Slot::LiquidId.binding(), 45);
+        assert_eq!(Slot::GridBlockSums.binding(), 46);
     }
 }

@@ -361,6 +361,15 @@ pub struct StressGpu {
     pub art: Mat3Gpu,
 }
 
+/// `CellEntry` (common.wgsl): one entry of a set's cell list, the particle index with its position at
+/// the grid build (the neighbour loops test distances without an indirection).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct CellEntry {
+    pub pos: [f32; 3],
+    pub id: u32,
+}
+
 /// `GridSet` (common.wgsl): the set a grid pass instance bins.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
@@ -378,6 +387,7 @@ const _: () = assert!(size_of::<ObjectGpu>() == 80);
 const _: () = assert!(size_of::<Mat3Gpu>() == 48);
 const _: () = assert!(size_of::<StressGpu>() == 96);
 const _: () = assert!(size_of::<GridSet>() == 16);
+const _: () = assert!(size_of::<CellEntry>() == 16);
 const _: () = assert!(size_of::<MotionGpu>() == 80);
 const _: () = assert!(size_of::<BatchState>() == 112 + 8 * MAX_BATCH);
 const _: () = assert!(size_of::<EmitterGpu>() == 96);
@@ -431,6 +441,7 @@ pub const LAYOUTS: &[StructLayout] = &[
     ("Mat3Gpu", size_of::<Mat3Gpu>(), &[("c1", offset_of!(Mat3Gpu, c1)), ("c2", offset_of!(Mat3Gpu, c2))]),
     ("StressGpu", size_of::<StressGpu>(), &[("art", offset_of!(StressGpu, art))]),
     ("GridSet", size_of::<GridSet>(), &[("cells", offset_of!(GridSet, cells))]),
+    ("CellEntry", size_of::<CellEntry>(), &[("id", offset_of!(CellEntry, id))]),
     (
         "MotionGpu",
         size_of::<MotionGpu>(),

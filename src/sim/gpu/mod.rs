@@ -4,7 +4,7 @@
 //!
 //! All particle state lives on the GPU; the host encodes the ordered pass lists of [`passes`] and reads
 //! back only what it must. Particles stay in id order and every neighbour sum runs in the CPU's
-//! canonical order (27 cells in a fixed offset order, ascending index inside a cell), so the two
+//! canonical order (125 cells in a fixed offset order, ascending index inside a cell), so the two
 //! back-ends differ only by f32 rounding of individual operations (transcendental functions, possible
 //! FMA contraction). No float atomics: the grid uses integer atomics plus a per-cell sort, Δt a
 //! bit-pattern atomicMin/Max, so a run is bit-reproducible on one adapter.
@@ -292,7 +292,7 @@ impl GpuSolver {
             (Slot::SolidOrder, counts.solid as usize),
             (Slot::BoundaryOrder, counts.boundary as usize),
         ] {
-            solver_init.push((slot, vec![0u8; 4 * n]));
+            solver_init.push((slot, vec![0u8; std::mem::size_of::<gpu_types::CellEntry>() * n]));
         }
         for slot in [Slot::LiquidCellStart, Slot::SolidCellStart, Slot::BoundaryCellStart] {
             solver_init.push((slot, vec![0u8; 4 * (cells as usize + 1)]));

@@ -9,7 +9,7 @@ use Slot::*;
 
 /// Workgroup size of every family's particle passes (`@workgroup_size(64)` in the WGSL).
 pub const WORKGROUP: u32 = 64;
-/// `grid_scan` runs as one workgroup of this size.
+/// `grid_scan_top` runs as one workgroup of this size.
 pub const SCAN_WORKGROUP: u32 = 256;
 
 /// How many invocations a pass needs.
@@ -46,13 +46,18 @@ const NBR_ALL: [Slot; 6] = [LiquidOrder, LiquidCellStart, SolidOrder, SolidCellS
 
 pub const GRID_CLEAR: PassSpec = pass("grid_clear", "grid", GRID_SLOTS, Dispatch::GridCellsPlusOne);
 pub const GRID_COUNT: PassSpec = pass("grid_count", "grid", GRID_SLOTS, Dispatch::GridParticles);
-pub const GRID_SCAN: PassSpec = PassSpec {
-    entry: "grid_scan",
+/// Prefix sum of the cell counts in three phases (integer sums: bit-identical to the CPU's sequential
+/// scan): block counts, one workgroup over the block counts, block-local scans plus block offsets.
+const SCAN_SLOTS: &[Slot] = &[GridSet, GridCellStart, GridCursor, GridBlockSums];
+pub const GRID_SCAN_BLOCKS: PassSpec = pass("grid_scan_blocks", "grid", SCAN_SLOTS, Dispatch::GridCells);
+pub const GRID_SCAN_TOP: PassSpec = PassSpec {
+    entry: "grid_scan_top",
     family: "grid",
     workgroup_size: SCAN_WORKGROUP,
-    slots: GRID_SLOTS,
+    slots: SCAN_SLOTS,
     dispatch: Dispatch::One,
 };
+pub const GRID_SCAN_APPLY: PassSpec = pass("grid_scan_apply", "grid", SCAN_SLOTS, Dispatch::GridCells);
 pub const GRID_SCATTER: PassSpec = pass("grid_scatter", "grid", GRID_SLOTS, Dispatch::GridParticles);
 pub const GRID_SORT_CELLS: PassSpec = pass("grid_sort_cells", "grid", GRID_SLOTS, Dispatch::GridCells);
 
@@ -306,7 +311,9 @@ pub const STEP_EMIT: &[Stage] = &[
 pub const ALL_PASSES: &[PassSpec] = &[
     GRID_CLEAR,
     GRID_COUNT,
-    GRID_SCAN,
+    GRID_SCAN_BLOCKS,
+    GRID_SCAN_TOP,
+    GRID_SCAN_APPLY,
     GRID_SCATTER,
     GRID_SORT_CELLS,
     DENSITY_LIQUID,
@@ -352,14 +359,16 @@ pub enum GridOf {
 #[derive(Clone, Copy, Debug)]
 pub enum Stage {
     Pass(PassSpec),
-    /// grid_clear · grid_count · grid_scan · grid_scatter · grid_sort_cells for one set.
+    /// grid_clear · grid_count · grid_scan_blocks · grid_scan_top · grid_scan_apply · grid_scatter ·
+    /// grid_sort_cells for one set.
     Grid(GridOf),
     /// Not a dispatch: the host copies `batch.n_liquid` into the uniforms' liquid count (emitters).
     SyncCounts,
 }
 
 /// The grid build of one set (twin: `grid::grid_build`).
-pub const GRID_BUILD: &[PassSpec] = &[GRID_CLEAR, GRID_COUNT, GRID_SCAN, GRID_SCATTER, GRID_SORT_CELLS];
+pub const GRID_BUILD: &[PassSpec] =
+    &[GRID_CLEAR, GRID_COUNT, GRID_SCAN_BLOCKS, GRID_SCAN_TOP, GRID_SCAN_APPLY, GRID_SCATTER, GRID_SORT_CELLS];
 
 /// Boundaries to the current pose and the three cell lists (`move_boundaries` + `build_grids`).
 pub const PLACE_AND_BIN: &[Stage] = &[
