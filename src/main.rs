@@ -150,6 +150,11 @@ enum Cmd {
         no_fluid: bool,
         #[arg(long = "set", value_name = "FIELD=VALUE")]
         set: Vec<String>,
+        /// After the (last) image, draw the same state N more times and print the GPU milliseconds of each
+        /// render pass (timestamp queries: scene, the screen-space blood passes, composite) and the frame
+        /// time — the renderer's cost at --size.
+        #[arg(long, value_name = "N")]
+        timing: Option<u32>,
     },
     /// Dynamic mode decomposition of the frames of a `perfuse run` (thesis ch. 5): plots and dmd.json.
     Dmd {
@@ -285,6 +290,7 @@ fn render_command(
     field: &str,
     no_fluid: bool,
     set: &[String],
+    timing: Option<u32>,
 ) -> Result<()> {
     use perfuse::render::{Renderer, snapshot};
     use perfuse::sim::Simulation;
@@ -335,6 +341,25 @@ fn render_command(
         bar.suspend(|| {
             println!("{}: t = {:.4} s rendered to {} ({}×{})", sc.name, sim.time(), path.display(), size.0, size.1)
         });
+    }
+    if let (Some(n), Some(camera)) = (timing.filter(|n| *n > 0), camera.as_ref()) {
+        let snapshot::FrameTiming { passes, wall_ms } =
+            snapshot::time_frames(&sim, &ctx, &mut renderer, camera, size, n)?;
+        bar.finish_and_clear();
+        println!("render timing at {}×{} over {n} frames ({}):", size.0, size.1, ctx.info.name);
+        if passes.is_empty() {
+            println!("  no timestamp queries on this adapter: wall time only");
+        }
+        for (name, ms) in &passes {
+            println!("  {name:<16} {ms:>8.3} ms");
+        }
+        let blood: f64 =
+            passes.iter().filter(|(n, _)| n.starts_with("blood") || n.starts_with("filter")).map(|p| p.1).sum();
+        let gpu: f64 = passes.iter().map(|p| p.1).sum();
+        if !passes.is_empty() {
+            println!("  GPU total {gpu:.3} ms, of which screen-space blood (thickness, depth, filters) {blood:.3} ms");
+        }
+        println!("  frame (submit to GPU done) {wall_ms:.3} ms");
     }
     bar.finish_and_clear();
     Ok(())
@@ -585,9 +610,9 @@ fn real_main() -> Result<()> {
             println!("wrote vitals.csv, vitals.png, hepatic_inflow.png, hepatic_pulse.png to {}", out.display());
             Ok(())
         }
-        Cmd::Render { scenario, at, out, every, until, size, backend, field, no_fluid, set } => {
+        Cmd::Render { scenario, at, out, every, until, size, backend, field, no_fluid, set, timing } => {
             let sequence = every.zip(until);
-            render_command(&scenario, at, sequence, &out, &size, backend, &field, no_fluid, &set)
+            render_command(&scenario, at, sequence, &out, &size, backend, &field, no_fluid, &set, timing)
         }
         Cmd::Run { scenario, backend, until, steps, out, set, vtk } => {
             let sc = Scenario::load_with_overrides(&scenario, &set)?;

@@ -199,3 +199,41 @@ fn render_every_writes_a_numbered_png_sequence() {
     assert_eq!(times.len(), 2, "{stdout}");
     assert!(times[0] == 0.0 && times[1] >= 0.001, "{stdout}");
 }
+
+/// `perfuse render --timing N` prints the GPU milliseconds of every render pass (lavapipe has timestamp
+/// queries) and the frame time: 64 frames at a tiny size, so two of them are timed.
+#[test]
+fn render_timing_prints_every_pass() {
+    if std::env::var("PERFUSE_SKIP_GPU_TESTS").is_ok_and(|v| v == "1") {
+        eprintln!("\n!!!!!!!! PERFUSE_SKIP_GPU_TESTS=1: SKIPPING `render_timing_prints_every_pass` !!!!!!!!\n");
+        return;
+    }
+    let dir = artifact("render_timing");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let scene = dir.join("scene.ron");
+    std::fs::write(&scene, SCENE).expect("scene");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_perfuse"))
+        .arg("render")
+        .arg(&scene)
+        .args(["--backend", "cpu", "--size", "64x48", "--timing", "64", "--out"])
+        .arg(dir.join("timed.png"))
+        .output()
+        .expect("run perfuse");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("render timing at 64×48 over 64 frames"), "{stdout}");
+    let ms = |name: &str| -> f64 {
+        let line =
+            stdout.lines().find(|l| l.trim_start().starts_with(name)).unwrap_or_else(|| panic!("{name}: {stdout}"));
+        line.split_whitespace().rev().nth(1).and_then(|v| v.parse().ok()).unwrap_or_else(|| panic!("{line}"))
+    };
+    let frame = ms("frame (submit to GPU done)");
+    assert!(frame.is_finite() && frame > 0.0, "{stdout}");
+    if !stdout.contains("no timestamp queries") {
+        for pass in ["scene", "blood thickness", "blood depth", "filter h", "filter v", "composite"] {
+            let v = ms(pass);
+            assert!(v.is_finite() && v >= 0.0, "{pass}: {stdout}");
+        }
+        assert!(ms("scene") > 0.0, "{stdout}");
+    }
+}

@@ -81,6 +81,55 @@ fn material_bounds(sim: &Simulation) -> Option<(Vec3, Vec3)> {
     bounds(&material_points(sim.scenario(), sim.params().origin))
 }
 
+/// The current state published into its own frame buffers and an offscreen target: what one
+/// offscreen draw needs, owned, so the [`Scene`] can borrow it.
+struct Prepared {
+    _frame: FrameBuffers,
+    group: wgpu::BindGroup,
+    info: crate::sim::frame::FrameInfo,
+    target: Offscreen,
+    counts: (u32, u32),
+    spacings: (f32, f32),
+}
+
+impl Prepared {
+    fn new(sim: &Simulation, ctx: &GpuContext, renderer: &Renderer, size: (u32, u32)) -> Result<Self, SnapshotError> {
+        let (nl, ns) = sim.frame_counts();
+        let frame = FrameBuffers::new(&ctx.device, nl, ns, "snapshot");
+        let info = sim.publish(&frame, &ctx.queue)?;
+        let group = renderer.bind_frame(&frame);
+        let target = Offscreen::new(&ctx.device, size)?;
+        Ok(Prepared { _frame: frame, group, info, target, counts: (nl, ns), spacings: spacings(sim.scenario()) })
+    }
+
+    fn scene(&self) -> Scene<'_> {
+        let (nl, ns) = self.counts;
+        Scene {
+            particles: Some((&self.group, self.info.n_liquid.min(nl), ns)),
+            objects: &self.info.objects,
+            origin: self.info.origin,
+            dx_solid: self.spacings.0,
+            dx_liquid: self.spacings.1,
+        }
+    }
+
+    /// Encodes and submits one draw of the scene.
+    fn draw(
+        &self,
+        ctx: &GpuContext,
+        renderer: &mut Renderer,
+        camera: &OrbitCamera,
+        size: (u32, u32),
+    ) -> Result<(), SnapshotError> {
+        let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snapshot") });
+        let scene = self.scene();
+        renderer.draw(&mut enc, &self.target.view, super::offscreen::OFFSCREEN_FORMAT, size, camera, &scene)?;
+        ctx.queue.submit([enc.finish()]);
+        renderer.submitted();
+        Ok(())
+    }
+}
+
 /// Renders the simulation's current state into an image of `size` on the device of `ctx` (which
 /// must be the simulation's device when it runs on the GPU).
 pub fn render_image(
@@ -90,22 +139,51 @@ pub fn render_image(
     camera: &OrbitCamera,
     size: (u32, u32),
 ) -> Result<image::RgbaImage, SnapshotError> {
-    let (nl, ns) = sim.frame_counts();
-    let frame = FrameBuffers::new(&ctx.device, nl, ns, "snapshot");
-    let info = sim.publish(&frame, &ctx.queue)?;
-    let group = renderer.bind_frame(&frame);
-    let target = Offscreen::new(&ctx.device, size)?;
-    let (dx_solid, dx_liquid) = spacings(sim.scenario());
-    let scene = Scene {
-        particles: Some((&group, info.n_liquid.min(nl), ns)),
-        objects: &info.objects,
-        origin: info.origin,
-        dx_solid,
-        dx_liquid,
-    };
-    let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("snapshot") });
-    renderer.draw(&mut enc, &target.view, super::offscreen::OFFSCREEN_FORMAT, size, camera, &scene)?;
-    ctx.queue.submit([enc.finish()]);
-    renderer.submitted();
-    Ok(target.read(&ctx.device, &ctx.queue)?)
+    let prepared = Prepared::new(sim, ctx, renderer, size)?;
+    prepared.draw(ctx, renderer, camera, size)?;
+    Ok(prepared.target.read(&ctx.device, &ctx.queue)?)
+}
+
+/// The renderer's cost at one size ([`time_frames`]).
+#[derive(Clone, Debug, Default)]
+pub struct FrameTiming {
+    /// Mean GPU milliseconds of each pass over the frames the timestamp queries timed (empty without them).
+    pub passes: Vec<(&'static str, f64)>,
+    /// Mean wall-clock milliseconds per frame, submission to completion.
+    pub wall_ms: f64,
+}
+
+/// GPU cost of drawing the current state `frames` times at `size` (offscreen, the viewer's passes).
+/// The renderer's timer times every 30th frame; nothing else is read back.
+pub fn time_frames(
+    sim: &Simulation,
+    ctx: &GpuContext,
+    renderer: &mut Renderer,
+    camera: &OrbitCamera,
+    size: (u32, u32),
+    frames: u32,
+) -> Result<FrameTiming, SnapshotError> {
+    let prepared = Prepared::new(sim, ctx, renderer, size)?;
+    let mut sums: Vec<(&'static str, f64)> = Vec::new();
+    let mut timed = 0u32;
+    let mut last: Vec<(&'static str, f64)> = renderer.pass_ms().to_vec();
+    let t0 = std::time::Instant::now();
+    for _ in 0..frames {
+        prepared.draw(ctx, renderer, camera, size)?;
+        ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(crate::sim::gpu::GpuError::from)?;
+        let now = renderer.pass_ms();
+        if !now.is_empty() && now != last.as_slice() {
+            for (name, ms) in now {
+                match sums.iter_mut().find(|(n, _)| n == name) {
+                    Some(e) => e.1 += ms,
+                    None => sums.push((name, *ms)),
+                }
+            }
+            timed += 1;
+            last = now.to_vec();
+        }
+    }
+    let wall_ms = t0.elapsed().as_secs_f64() * 1e3 / f64::from(frames.max(1));
+    let passes = sums.into_iter().map(|(n, ms)| (n, ms / f64::from(timed.max(1)))).collect();
+    Ok(FrameTiming { passes, wall_ms })
 }
