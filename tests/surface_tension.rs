@@ -52,18 +52,21 @@ fn contact_angles(adhesion: f64, samples: &[f64]) -> Vec<ContactAngle> {
 
 /// A drop on an impermeable plate (thesis Fig. 3.13): with cohesion s_ll and adhesion s_lb of (3.3) it
 /// settles into a steady cap whose contact angle falls as the adhesion grows (Young: cos θ rises with the
-/// liquid–plate attraction). Measured over 60–100 ms (five samples; θ jitters by ±5° at the particle
+/// liquid–plate attraction). Measured over 120–200 ms (five samples; θ jitters by ±5° at the particle
 /// scale of this 197-particle drop): each cap steady (samples within a 12° band) and the mean angles
 /// falling with s_lb/s_ll = 0.75, 1.0, 1.5, each step by more than 3°. Measured on this drop (README):
-/// ≈ 102°, 91°, 82°; stronger adhesion saturates near 80° (the drop spreads until the particle lattice
-/// of the plate pins its contact line), weaker is not steady within the test's time (at 0.5 the cap
-/// keeps rising past 125°, at 0.25 the drop lets go of the plate).
+/// ≈ 91°, 84°, 75°. The cap is still spreading before ≈ 100 ms, and how it gets there depends on the
+/// order of the neighbour sums (the contact line sticks and slips on the plate's particle lattice): at
+/// 0.75, 60–100 ms read 108° → 92° with the 5³ neighbour block, 107° → 96° with the former 3³ one, but
+/// 120–200 ms agree within the jitter for 3³, 5³ and 7³ blocks (≈ 91–96°, 84–89°, 72–77°). Weaker
+/// adhesion is not steady within the test's time (at 0.5 the cap keeps rising past 125°, at 0.25 the
+/// drop lets go of the plate).
 #[test]
 fn drop_contact_angle_falls_as_adhesion_grows() {
     let ratios = [0.75, 1.0, 1.5];
     let mut theta = Vec::new();
     for r in ratios {
-        let ca = contact_angles(0.002 * r, &[0.06, 0.07, 0.08, 0.09, 0.1]);
+        let ca = contact_angles(0.002 * r, &[0.12, 0.14, 0.16, 0.18, 0.2]);
         let deg: Vec<f64> = ca.iter().map(|c| c.degrees).collect();
         let mean = deg.iter().sum::<f64>() / deg.len() as f64;
         let band = deg.iter().copied().fold(f64::MIN, f64::max) - deg.iter().copied().fold(f64::MAX, f64::min);
