@@ -612,18 +612,14 @@ fn nbr_end() -> u32 {
 // Cell index of neighbour offset k of cell c, or -1 when it lies outside a non-periodic axis.
 fn nbr_cell(c: vec3<i32>, k: u32) -> i32 {
     let off = vec3<i32>(i32(k % NBR_SIDE), i32((k / NBR_SIDE) % NBR_SIDE), i32(k / (NBR_SIDE * NBR_SIDE))) - GRID_REACH;
-    var nc = c + off;
-    for (var a = 0; a < 3; a++) {
-        let n = i32(params.grid_n[a]);
-        if (nc[a] < 0 || nc[a] >= n) {
-            if (params.period[a] > 0.0) {
-                nc[a] = ((nc[a] % n) + n) % n;
-            } else {
-                return -1;
-            }
-        }
+    let nc = c + off;
+    let n = vec3<i32>(params.grid_n.xyz);
+    let outside = (nc < vec3<i32>(0)) | (nc >= n);
+    let periodic = params.period.xyz > vec3<f32>(0.0);
+    if (any(outside & !periodic)) {
+        return -1;
     }
-    return i32(cell_index(nc));
+    return i32(cell_index(select(nc, ((nc % n) + n) % n, outside)));
 }
 
 // Whether the rows of c's neighbour block wrap around a periodic x axis.
@@ -658,14 +654,19 @@ fn nbr_span(c: vec3<i32>, k: u32) -> vec2<i32> {
     return vec2<i32>(mid + lo, mid + hi);
 }
 
-// Minimum-image difference on periodic axes (SPEC §4.3).
-fn min_image(d_in: vec3<f32>) -> vec3<f32> {
-    var d = d_in;
-    for (var a = 0; a < 3; a++) {
-        let l = params.period[a];
-        if (l > 0.0) {
-            d[a] = d[a] - l * round_away(d[a] / l);
-        }
+// round_away of each component.
+fn round_away3(x: vec3<f32>) -> vec3<f32> {
+    let t = trunc(x);
+    return select(t, t + select(vec3<f32>(1.0), vec3<f32>(-1.0), x < vec3<f32>(0.0)), abs(x - t) >= vec3<f32>(0.5));
+}
+
+// Minimum-image difference on periodic axes (SPEC §4.3), per component without a loop (it runs for
+// every neighbour candidate): d − l·round(d/l) where l > 0, d elsewhere (the unselected quotient of a
+// non-periodic axis, d/0, is discarded).
+fn min_image(d: vec3<f32>) -> vec3<f32> {
+    let l = params.period.xyz;
+    if (all(l <= vec3<f32>(0.0))) {
+        return d;
     }
-    return d;
+    return select(d, d - l * round_away3(d / l), l > vec3<f32>(0.0));
 }
