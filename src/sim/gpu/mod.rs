@@ -802,8 +802,20 @@ impl GpuSolver {
                 }
                 continue;
             }
+            if b.steps == 0 {
+                // The first step of a batch always runs while t < t_end: none ran, so the GPU executed
+                // nothing (an invalid pipeline, a lost device). Looping on would never reach t_end.
+                return Err(GpuError::Validation {
+                    context: "batch".into(),
+                    message: format!(
+                        "a batch of {n} steps ran none at t = {:.6e} s: the GPU did not execute the step",
+                        self.t
+                    ),
+                }
+                .into());
+            }
             self.account(&b, acc);
-            left -= u64::from(b.steps).max(1).min(left);
+            left -= u64::from(b.steps).min(left);
         }
         Ok(())
     }
