@@ -598,7 +598,7 @@ fn cell_index(c: vec3<i32>) -> u32 {
 // Cells per search radius (twin: grid::GRID_REACH): the neighbour block is ±GRID_REACH cells per axis.
 const GRID_REACH: i32 = 2;
 // Cells per axis of the neighbour block.
-const NBR_SIDE: u32 = 5u;
+const NBR_SIDE: u32 = u32(2 * GRID_REACH + 1);
 
 // Range of neighbour-cell offsets k (k = 25(dz+2) + 5(dy+2) + (dx+2)): 125 cells in 3-D, 25 in 2-D.
 fn nbr_begin() -> u32 {

@@ -35,18 +35,25 @@ fn grid_count(@builtin(global_invocation_id) gid: vec3<u32>) {
 var<workgroup> scan_partial: array<u32, 256>;
 var<workgroup> scan_local: array<u32, 64>;
 
+// The counts of block b's cells into scan_local (0 past the last cell), for the whole workgroup;
+// returns this invocation's cell. Called from uniform control flow (it holds a barrier).
+fn load_block_counts(lane: u32, b: u32) -> u32 {
+    let c = b * GRID_WG + lane;
+    var n = 0u;
+    if (c < grid_set.cells) {
+        n = atomicLoad(&grid_cursor[c]);
+    }
+    scan_local[lane] = n;
+    workgroupBarrier();
+    return c;
+}
+
 // The prefix sum of the counts into grid_cell_start[0..=cells] in three phases, so that no single
 // workgroup walks all cells (the cell count grows as (domain / (R/2))³). Integer sums, so the result is
 // the CPU's sequential scan bit for bit. Phase 1: the count of each block of GRID_WG cells.
 @compute @workgroup_size(64)
 fn grid_scan_blocks(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
-    let c = wid.x * GRID_WG + lid.x;
-    var n = 0u;
-    if (c < grid_set.cells) {
-        n = atomicLoad(&grid_cursor[c]);
-    }
-    scan_local[lid.x] = n;
-    workgroupBarrier();
+    load_block_counts(lid.x, wid.x);
     if (lid.x == 0u) {
         var sum = 0u;
         for (var t = 0u; t < GRID_WG; t++) {
@@ -94,13 +101,7 @@ fn grid_scan_top(@builtin(local_invocation_id) lid: vec3<u32>) {
 // the cell starts for grid_scatter.
 @compute @workgroup_size(64)
 fn grid_scan_apply(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
-    let c = wid.x * GRID_WG + lid.x;
-    var n = 0u;
-    if (c < grid_set.cells) {
-        n = atomicLoad(&grid_cursor[c]);
-    }
-    scan_local[lid.x] = n;
-    workgroupBarrier();
+    let c = load_block_counts(lid.x, wid.x);
     if (lid.x == 0u) {
         var acc = grid_block_sums[wid.x];
         for (var t = 0u; t < GRID_WG; t++) {

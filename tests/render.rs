@@ -165,17 +165,15 @@ fn half_to_f32(h: u16) -> f32 {
     }
 }
 
-/// `perfuse render --every --until` writes a numbered PNG sequence from one simulation run (two
-/// frames at a tiny size, so the test costs about a second on lavapipe).
-#[test]
-fn render_every_writes_a_numbered_png_sequence() {
+/// Runs `perfuse render` on [`SCENE`] at 64×48 on the CPU back-end with `args`, writing `png` into a
+/// fresh artifact folder `dir_name`; asserts success and returns (folder, stdout), or None when
+/// PERFUSE_SKIP_GPU_TESTS=1 (announced, as every GPU test does).
+fn render_cli(test: &str, dir_name: &str, args: &[&str], png: &str) -> Option<(std::path::PathBuf, String)> {
     if std::env::var("PERFUSE_SKIP_GPU_TESTS").is_ok_and(|v| v == "1") {
-        eprintln!(
-            "\n!!!!!!!! PERFUSE_SKIP_GPU_TESTS=1: SKIPPING `render_every_writes_a_numbered_png_sequence` !!!!!!!!\n"
-        );
-        return;
+        eprintln!("\n!!!!!!!! PERFUSE_SKIP_GPU_TESTS=1: SKIPPING `{test}` !!!!!!!!\n");
+        return None;
     }
-    let dir = artifact("render_sequence");
+    let dir = artifact(dir_name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("dir");
     let scene = dir.join("scene.ron");
@@ -183,12 +181,29 @@ fn render_every_writes_a_numbered_png_sequence() {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_perfuse"))
         .arg("render")
         .arg(&scene)
-        .args(["--backend", "cpu", "--size", "64x48", "--at", "0", "--every", "0.001", "--until", "0.001", "--out"])
-        .arg(dir.join("seq.png"))
+        .args(["--backend", "cpu", "--size", "64x48"])
+        .args(args)
+        .arg("--out")
+        .arg(dir.join(png))
         .output()
         .expect("run perfuse");
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    Some((dir, stdout))
+}
+
+/// `perfuse render --every --until` writes a numbered PNG sequence from one simulation run (two
+/// frames at a tiny size, so the test costs about a second on lavapipe).
+#[test]
+fn render_every_writes_a_numbered_png_sequence() {
+    let Some((dir, stdout)) = render_cli(
+        "render_every_writes_a_numbered_png_sequence",
+        "render_sequence",
+        &["--at", "0", "--every", "0.001", "--until", "0.001"],
+        "seq.png",
+    ) else {
+        return;
+    };
     for k in 0..2 {
         let img = image::open(dir.join(format!("seq_{k:05}.png"))).expect("frame is a PNG").to_rgba8();
         assert_eq!(img.dimensions(), (64, 48));
@@ -204,23 +219,11 @@ fn render_every_writes_a_numbered_png_sequence() {
 /// queries) and the frame time: 64 frames at a tiny size, so two of them are timed.
 #[test]
 fn render_timing_prints_every_pass() {
-    if std::env::var("PERFUSE_SKIP_GPU_TESTS").is_ok_and(|v| v == "1") {
-        eprintln!("\n!!!!!!!! PERFUSE_SKIP_GPU_TESTS=1: SKIPPING `render_timing_prints_every_pass` !!!!!!!!\n");
+    let Some((_, stdout)) =
+        render_cli("render_timing_prints_every_pass", "render_timing", &["--timing", "64"], "timed.png")
+    else {
         return;
-    }
-    let dir = artifact("render_timing");
-    std::fs::create_dir_all(&dir).expect("dir");
-    let scene = dir.join("scene.ron");
-    std::fs::write(&scene, SCENE).expect("scene");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_perfuse"))
-        .arg("render")
-        .arg(&scene)
-        .args(["--backend", "cpu", "--size", "64x48", "--timing", "64", "--out"])
-        .arg(dir.join("timed.png"))
-        .output()
-        .expect("run perfuse");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    };
     assert!(stdout.contains("render timing at 64×48 over 64 frames"), "{stdout}");
     let ms = |name: &str| -> f64 {
         let line =
