@@ -10,6 +10,7 @@ use common::scenes::{perfused_block, perfused_block_oscillating, poiseuille_smal
 use glam::Vec3;
 use perfuse::scenario::{Scenario, generate};
 use perfuse::sim::cpu::CpuSolver;
+use perfuse::sim::gpu::device::ErrorScope;
 use perfuse::sim::gpu::{BatchTotals, GpuContext, GpuSolver};
 use perfuse::sim::params::Params;
 use perfuse::sim::{Command, SimError};
@@ -235,4 +236,27 @@ fn motion_twin_matches_motion_at() {
         }
     }
     eprintln!("motion twin vs motion_at: max |Δd| = {worst:.3e} m");
+}
+
+/// A shader that fails to parse is reported by the operation that created it, inside an enclosing
+/// error scope too (the harness pushes one around every GPU test). Before `ErrorScope`, the solver
+/// relied on the device's uncaptured-error handler, the harness's scope swallowed the parse error,
+/// and the solver only failed later, when a batch ran no step.
+#[test]
+fn errors_reach_the_innermost_scope() {
+    gpu_test("errors_reach_the_innermost_scope", |ctx| {
+        let device = &ctx.device;
+        let result = ErrorScope::around(device, "probe module", || {
+            let _module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("perfuse.test.broken"),
+                source: wgpu::ShaderSource::Wgsl("fn broken() -> u32 { return 1u +; }".into()),
+            });
+            Ok(())
+        });
+        let message = result.expect_err("a parse error must be reported").to_string();
+        println!("{message}");
+        assert!(message.contains("probe module"), "names the operation: {message}");
+        // Nothing is left for the enclosing scope: a clean operation after it reports no error.
+        ErrorScope::around(device, "clean", || Ok(())).expect("no error left over");
+    });
 }

@@ -203,8 +203,50 @@ impl GpuContext {
     }
 }
 
-/// Keeps the device's uncaptured errors (validation, OOM) for the solver to report as [`GpuError`]
-/// instead of wgpu's default panic.
+/// Captures the validation and out-of-memory errors raised on this thread between [`ErrorScope::push`]
+/// and [`ErrorScope::pop`]. wgpu's error scopes are per thread and nest, so the innermost scope gets
+/// exactly the errors of the work it brackets — also when a caller has pushed scopes of its own (the
+/// test harness does: without this, a shader that failed to parse reached the harness's scope, never
+/// the solver, and the solver only noticed when a batch ran no step).
+pub struct ErrorScope {
+    validation: wgpu::ErrorScopeGuard,
+    oom: wgpu::ErrorScopeGuard,
+}
+
+impl ErrorScope {
+    pub fn push(device: &wgpu::Device) -> ErrorScope {
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        ErrorScope { validation, oom }
+    }
+
+    /// Pops both scopes (innermost first) and returns the first captured error as a
+    /// [`GpuError::Validation`] naming `context`.
+    pub fn pop(self, context: &str) -> Result<(), GpuError> {
+        let oom = pollster::block_on(self.oom.pop());
+        let validation = pollster::block_on(self.validation.pop());
+        match validation.or(oom) {
+            None => Ok(()),
+            Some(e) => Err(GpuError::Validation { context: context.to_string(), message: e.to_string() }),
+        }
+    }
+
+    /// Runs `f` inside a scope; an error the scope captured is reported before `f`'s own result
+    /// (it is the cause: e.g. a batch that ran no step because its pipelines are invalid).
+    pub fn around<T>(
+        device: &wgpu::Device,
+        context: &str,
+        f: impl FnOnce() -> Result<T, GpuError>,
+    ) -> Result<T, GpuError> {
+        let scope = ErrorScope::push(device);
+        let result = f();
+        scope.pop(context)?;
+        result
+    }
+}
+
+/// Keeps the device's uncaptured errors (validation, OOM raised outside any [`ErrorScope`]) for the
+/// solver to report as [`GpuError`] instead of wgpu's default panic.
 #[derive(Clone, Default)]
 pub struct ErrorSink(Arc<std::sync::Mutex<Vec<String>>>);
 

@@ -233,6 +233,14 @@ impl GpuSolver {
     /// Builds the solver with the exact state of `cpu` (initial state, or any later state for
     /// per-pass differential tests).
     pub fn from_cpu(ctx: GpuContext, cpu: &CpuSolver) -> Result<GpuSolver, SimError> {
+        let device = ctx.device.clone();
+        let scope = device::ErrorScope::push(&device);
+        let built = Self::build(ctx, cpu);
+        scope.pop("solver creation")?;
+        built
+    }
+
+    fn build(ctx: GpuContext, cpu: &CpuSolver) -> Result<GpuSolver, SimError> {
         let errors = device::ErrorSink::install(&ctx.device);
         let params = cpu.params.clone();
         let st = &cpu.st;
@@ -521,11 +529,15 @@ impl GpuSolver {
 
     /// Runs `stages` now and waits for them (tests: single passes; apply: boundaries + grids).
     pub fn run_stages(&mut self, stages: &[Stage]) -> Result<(), GpuError> {
-        let mut enc =
-            self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("perfuse.stages") });
-        self.encode(&mut enc, stages);
-        self.ctx.queue.submit([enc.finish()]);
-        self.ctx.device.poll(wgpu::PollType::wait_indefinitely())?;
+        let device = self.ctx.device.clone();
+        device::ErrorScope::around(&device, "run_stages", || {
+            let mut enc =
+                device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("perfuse.stages") });
+            self.encode(&mut enc, stages);
+            self.ctx.queue.submit([enc.finish()]);
+            device.poll(wgpu::PollType::wait_indefinitely())?;
+            Ok(())
+        })?;
         self.errors.take("run_stages")
     }
 
@@ -703,6 +715,11 @@ impl GpuSolver {
     /// Runs one batch of `n` ≤ [`MAX_BATCH`] steps ending at the first step with tⁿ⁺¹ ≥ `t_end`, with
     /// one readback; the state at its start is kept in the backups.
     fn run_batch(&mut self, n: usize, t_end: f64) -> Result<BatchState, GpuError> {
+        let device = self.ctx.device.clone();
+        device::ErrorScope::around(&device, "batch", || self.encode_and_run_batch(n, t_end))
+    }
+
+    fn encode_and_run_batch(&mut self, n: usize, t_end: f64) -> Result<BatchState, GpuError> {
         let n = n.clamp(1, MAX_BATCH);
         let mut header: BatchState = bytemuck::Zeroable::zeroed();
         let end = split_pair(t_end.min(1e30));
