@@ -578,17 +578,12 @@ fn lap_viscosity(k: KernelConsts, r: f32) -> f32 {
 // ---- grid (twin: src/sim/cpu/grid.rs) ----
 // Integer cell coordinates of x, clamped into the grid (grid_cell_coords).
 fn cell_coords(x: vec3<f32>) -> vec3<i32> {
-    var c = vec3<i32>(0, 0, 0);
-    for (var a = 0; a < 3; a++) {
-        let f = floor((x[a] - params.grid_min[a]) / params.grid_cell[a]);
-        let n = i32(params.grid_n[a]);
-        var k = 0;
-        if (is_finite_f32(f)) {
-            k = i32(f);
-        }
-        c[a] = clamp(k, 0, n - 1);
-    }
-    return c;
+    // Per component, no vector-index loop (dynamic indexing of a vector is slow on several drivers).
+    let f = floor((x - params.grid_min.xyz) / params.grid_cell.xyz);
+    // A non-finite coordinate (a NaN state, the unused axis of a 2-D grid) bins to cell 0 on that axis.
+    let finite = (bitcast<vec3<u32>>(f) & vec3<u32>(0x7f800000u)) != vec3<u32>(0x7f800000u);
+    let k = select(vec3<i32>(0), vec3<i32>(f), finite);
+    return clamp(k, vec3<i32>(0), vec3<i32>(params.grid_n.xyz) - vec3<i32>(1));
 }
 
 fn cell_index(c: vec3<i32>) -> u32 {

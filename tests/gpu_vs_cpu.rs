@@ -129,6 +129,28 @@ fn positions(cpu: &CpuSolver, set: &str) -> Vec<[f32; 3]> {
     p.iter().map(|v| v.to_array()).collect()
 }
 
+/// The GPU's cell lists (starts, ids, entry positions) equal the CPU's bit for bit.
+fn assert_grids_match(cpu: &CpuSolver, gpu: &GpuSolver, when: &str) {
+    let cells = cpu.params.grid.cell_count() + 1;
+    for (name, list, order, start) in [
+        ("liquid", &cpu.grids.liquid, Slot::LiquidOrder, Slot::LiquidCellStart),
+        ("solid", &cpu.grids.solid, Slot::SolidOrder, Slot::SolidCellStart),
+        ("boundary", &cpu.grids.boundary, Slot::BoundaryOrder, Slot::BoundaryCellStart),
+    ] {
+        let e: Vec<CellEntry> = gpu.read_slot(order, list.order.len()).expect("read cell entries");
+        let s: Vec<u32> = gpu.read_slot(start, cells).expect("read cell starts");
+        assert_eq!(s, list.cell_start, "{name} cell_start {when}");
+        let o: Vec<u32> = e.iter().map(|e| e.id).collect();
+        assert_eq!(o, list.order, "{name} order {when}");
+        // each entry carries its particle's position, bit for bit
+        let x = positions(cpu, name);
+        for (q, e) in e.iter().enumerate() {
+            let same = e.pos == x[e.id as usize] || (e.pos[0].is_nan() && x[e.id as usize][0].is_nan());
+            assert!(same, "{name} entry {q} position {when}: {:?} vs {:?}", e.pos, x[e.id as usize]);
+        }
+    }
+}
+
 /// grid_count/scan/scatter/sort_cells: integer passes match bit for bit, at t = 0 and after 30 steps.
 #[test]
 fn grid_cell_lists_bit_identical() {
@@ -136,24 +158,34 @@ fn grid_cell_lists_bit_identical() {
         for steps in [0, 30] {
             let cpu = cpu_after(steps);
             let gpu = gpu_from(ctx.clone(), &cpu);
-            let cells = cpu.params.grid.cell_count() + 1;
-            for (name, list, order, start) in [
-                ("liquid", &cpu.grids.liquid, Slot::LiquidOrder, Slot::LiquidCellStart),
-                ("solid", &cpu.grids.solid, Slot::SolidOrder, Slot::SolidCellStart),
-                ("boundary", &cpu.grids.boundary, Slot::BoundaryOrder, Slot::BoundaryCellStart),
-            ] {
-                let e: Vec<CellEntry> = gpu.read_slot(order, list.order.len()).unwrap();
-                let s: Vec<u32> = gpu.read_slot(start, cells).unwrap();
-                assert_eq!(s, list.cell_start, "{name} cell_start after {steps} steps");
-                let o: Vec<u32> = e.iter().map(|e| e.id).collect();
-                assert_eq!(o, list.order, "{name} order after {steps} steps");
-                // each entry carries its particle's position, bit for bit
-                let x = positions(&cpu, name);
-                for (q, e) in e.iter().enumerate() {
-                    assert_eq!(e.pos, x[e.id as usize], "{name} entry {q} position after {steps} steps");
-                }
-            }
+            assert_grids_match(&cpu, &gpu, &format!("after {steps} steps"));
         }
+    });
+}
+
+/// Particles outside the domain (far beyond each face, one with a NaN coordinate) are clamped into
+/// the border cells the same way on both back-ends (`cell_coords` ↔ `grid_cell_coords`).
+#[test]
+fn grid_bins_stray_particles_like_the_cpu() {
+    gpu_test("grid_bins_stray_particles_like_the_cpu", |ctx| {
+        let mut cpu = cpu_solver();
+        let lo = cpu.params.grid.min;
+        let strays = [
+            Vec3::new(-1e30, 0.0, 1e30),
+            Vec3::new(1e30, -1e30, 0.0),
+            lo - Vec3::splat(0.5),
+            Vec3::new(f32::NAN, lo.y + 1e-3, lo.z + 1e-3),
+            Vec3::new(lo.x + 1e-3, f32::INFINITY, f32::NEG_INFINITY),
+        ];
+        for (k, x) in strays.iter().enumerate() {
+            cpu.st.liquid.x[3 * k + 1] = *x;
+            cpu.st.solid.x[5 * k + 2] = *x;
+        }
+        cpu.build_grids();
+        // the three finite strays count as outside; a non-finite coordinate bins to cell 0 on its axis
+        assert!(cpu.grids.liquid.outside >= 3, "{} liquid outside the grid", cpu.grids.liquid.outside);
+        let gpu = gpu_from(ctx, &cpu);
+        assert_grids_match(&cpu, &gpu, "with particles outside the domain");
     });
 }
 
