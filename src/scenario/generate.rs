@@ -299,23 +299,23 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             }
         }
     }
-    let membrane = match &s.membrane {
+    let (membrane, parent) = match &s.membrane {
         Some(m) if !g.solid.pos.is_empty() => {
-            let (flags, capsule) = add_membrane(&mut g, m, d);
+            let (flags, capsule, parent) = add_membrane(&mut g, m, d);
             keep_liquid_beneath_capsule(&mut g, &mesh_liquid, &capsule);
-            flags
+            (flags, parent)
         }
-        _ => vec![false; g.solid.pos.len()],
+        _ => (vec![false; g.solid.pos.len()], (0..g.solid.pos.len()).collect()),
     };
-    g.solid_flags = g
-        .solid
-        .pos
-        .iter()
-        .zip(&membrane)
-        .map(|(p, &mem)| {
+    // A capsule child is fixed with its parent (the two are one lattice site, SPEC §4.1/§4.5): a child
+    // left free beside a kinematic parent, on the rim of a fixed region, was squeezed out of the
+    // ligament region during the liver's relaxation and broke all 17 bonds that broke there.
+    g.solid_flags = (0..g.solid.pos.len())
+        .map(|i| {
+            let site = g.solid.pos[parent[i]];
             let fixed =
-                if s.fixed_regions.iter().any(|r| r.contains(*p, s.dimensions)) { SolidFlags::KINEMATIC } else { 0 };
-            fixed | if mem { SolidFlags::MEMBRANE } else { 0 }
+                if s.fixed_regions.iter().any(|r| r.contains(site, s.dimensions)) { SolidFlags::KINEMATIC } else { 0 };
+            fixed | if membrane[i] { SolidFlags::MEMBRANE } else { 0 }
         })
         .collect();
     // A membrane particle shows the liquid the equivalent mass of its share of a solid lattice site (§4.1).
@@ -456,9 +456,9 @@ fn keep_liquid_beneath_capsule(g: &mut GeneratedParticles, ranges: &[std::ops::R
 /// Membrane detection and boundary-resolution enhancement (thesis §3.1.2–3.1.3, SPEC §4.5): marks solid
 /// particles whose neighbourhood centre of mass (radius R_s, self included) is offset by more than δ_mem,
 /// then adds `count` children per membrane particle on its tangent plane, sharing the parent's mass
-/// equally. Returns the membrane flag of every (old and new) solid particle and each membrane parent's position
-/// and outward normal.
-fn add_membrane(g: &mut GeneratedParticles, m: &super::Membrane, d: usize) -> (Vec<bool>, Vec<(V3, V3)>) {
+/// equally. Returns the membrane flag of every (old and new) solid particle, each membrane parent's position
+/// and outward normal, and the lattice site every solid particle belongs to (itself, or a child's parent).
+fn add_membrane(g: &mut GeneratedParticles, m: &super::Membrane, d: usize) -> (Vec<bool>, Vec<(V3, V3)>, Vec<usize>) {
     use std::collections::HashMap;
     let radius = 2.0 * g.h_solid;
     let delta = m.threshold * g.dx_solid;
@@ -498,6 +498,7 @@ fn add_membrane(g: &mut GeneratedParticles, m: &super::Membrane, d: usize) -> (V
         offsets.push((i, off, len));
     }
     let mut flags = vec![false; pos.len()];
+    let mut parent: Vec<usize> = (0..pos.len()).collect();
     let mut capsule = Vec::new();
     let share = 1.0 / (membrane_children(m, d) as f64 + 1.0);
     let r_e = m.radius * g.dx_solid;
@@ -527,9 +528,10 @@ fn add_membrane(g: &mut GeneratedParticles, m: &super::Membrane, d: usize) -> (V
             g.solid.vel.push(vel);
             g.solid.mass.push(mass);
             flags.push(true);
+            parent.push(i);
         }
     }
-    (flags, capsule)
+    (flags, capsule, parent)
 }
 
 /// Children per membrane particle: N_e in 3-D; in 2-D the "circle" is the two points x ± r_e t1 (SPEC §4.5).
