@@ -417,17 +417,19 @@ fn is_finite_f32(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
 }
 
-fn is_finite3(v: vec3<f32>) -> bool {
-    return is_finite_f32(v.x) && is_finite_f32(v.y) && is_finite_f32(v.z);
+// is_finite_f32 of each component.
+fn finite_each(v: vec3<f32>) -> vec3<bool> {
+    return (bitcast<vec3<u32>>(v) & vec3<u32>(0x7f800000u)) != vec3<u32>(0x7f800000u);
 }
 
-// Rust f32::round: half away from zero (WGSL round() is half to even).
-fn round_away(x: f32) -> f32 {
+fn is_finite3(v: vec3<f32>) -> bool {
+    return all(finite_each(v));
+}
+
+// Rust f32::round of each component: half away from zero (WGSL round() is half to even).
+fn round_away3(x: vec3<f32>) -> vec3<f32> {
     let t = trunc(x);
-    if (abs(x - t) >= 0.5) {
-        return t + select(1.0, -1.0, x < 0.0);
-    }
-    return t;
+    return select(t, t + select(vec3<f32>(1.0), vec3<f32>(-1.0), x < vec3<f32>(0.0)), abs(x - t) >= vec3<f32>(0.5));
 }
 
 // Rust f32::signum (NaN passes through as NaN via copysign semantics of 1.0).
@@ -581,8 +583,7 @@ fn cell_coords(x: vec3<f32>) -> vec3<i32> {
     // Per component, no vector-index loop (dynamic indexing of a vector is slow on several drivers).
     let f = floor((x - params.grid_min.xyz) / params.grid_cell.xyz);
     // A non-finite coordinate (a NaN state, the unused axis of a 2-D grid) bins to cell 0 on that axis.
-    let finite = (bitcast<vec3<u32>>(f) & vec3<u32>(0x7f800000u)) != vec3<u32>(0x7f800000u);
-    let k = select(vec3<i32>(0), vec3<i32>(f), finite);
+    let k = select(vec3<i32>(0), vec3<i32>(f), finite_each(f));
     return clamp(k, vec3<i32>(0), vec3<i32>(params.grid_n.xyz) - vec3<i32>(1));
 }
 
@@ -647,12 +648,6 @@ fn nbr_span(c: vec3<i32>, k: u32) -> vec2<i32> {
     let lo = max(c.x - GRID_REACH, 0) - c.x;
     let hi = min(c.x + GRID_REACH, nx - 1) - c.x;
     return vec2<i32>(mid + lo, mid + hi);
-}
-
-// round_away of each component.
-fn round_away3(x: vec3<f32>) -> vec3<f32> {
-    let t = trunc(x);
-    return select(t, t + select(vec3<f32>(1.0), vec3<f32>(-1.0), x < vec3<f32>(0.0)), abs(x - t) >= vec3<f32>(0.5));
 }
 
 // Minimum-image difference on periodic axes (SPEC §4.3), per component without a loop (it runs for
