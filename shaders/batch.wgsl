@@ -116,6 +116,7 @@ fn batch_motion() {
         o.pressure = m.pressure;
         o.kind = m.kind;
         o.blade = u32(m.rest_a.w);
+        o.friction = m.friction;
         objects[k] = o;
     }
     // Inlet buffer velocities u(tⁿ⁺¹) = direction · Q(tⁿ⁺¹) · L/(N·V_p) (twin: emit::emit_velocities).

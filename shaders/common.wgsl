@@ -88,7 +88,8 @@ struct SimParams {
     // s_ll, s_lb of (3.3) [N]; 0: off
     cohesion_ll: f32,
     cohesion_lb: f32,
-    _pad0: u32,
+    // upper bound of Δt (Params::dt_upper): stick relaxation time of wall friction
+    dt_upper: f32,
     _pad1: u32,
 }
 
@@ -109,7 +110,8 @@ struct StepState {
     _pad2: u32,
 }
 
-// Mirrors `ObjectGpu`: one boundary object's pose (SPEC §4.1) and pressure mode (D-23).
+// Mirrors `ObjectGpu`: one boundary object's pose (SPEC §4.1), pressure mode (D-23) and Coulomb
+// coefficient of solid contact (README: deviations from SPEC).
 struct ObjectGpu {
     // surface: box [geom_a, geom_b] or sphere (centre geom_a, radius geom_b.x), current pose
     geom_a: vec4<f32>,
@@ -124,6 +126,11 @@ struct ObjectGpu {
     kind: u32,
     // 1 + the cut axis of a blade_cut scalpel (its box's mid-plane cuts bonds, fracture.wgsl); 0 otherwise
     blade: u32,
+    // Coulomb μ of solid contact (0: frictionless)
+    friction: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // Mirrors `MotionGpu`: one boundary object's rest shape, pressure mode and analytic motion
@@ -141,6 +148,10 @@ struct MotionGpu {
     kind: u32,
     // 0 static, 1 translate, 2 oscillate
     motion: u32,
+    friction: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // Mirrors `BatchState`: the GPU clock and the per-batch control/statistics of `GpuSolver::advance`.

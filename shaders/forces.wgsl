@@ -25,6 +25,49 @@ fn friction_coefficient(ns_i: f32, ns_j: f32) -> f32 {
     return params.kbar * max(1.0 - 0.5 * (ns_i + ns_j), 0.0);
 }
 
+// One axis of a box for `surface_normal`: keeps the nearer of its two faces if nearer than *best.
+fn nearer_face(best: ptr<function, f32>, n: ptr<function, vec3<f32>>, lo: f32, hi: f32, extent: f32, axis: vec3<f32>) {
+    if (extent > 0.0) {
+        if (lo < *best) {
+            *best = lo;
+            *n = -axis;
+        }
+        if (hi < *best) {
+            *best = hi;
+            *n = axis;
+        }
+    }
+}
+
+// Outward unit normal of object o's surface nearest to x (forces.rs `surface_normal`): a box's from
+// its closest point or, inside it, its nearest face (axes of zero extent have none); a sphere's radial
+// direction. Zero where the CPU twin has none.
+fn surface_normal(o: ObjectGpu, x: vec3<f32>) -> vec3<f32> {
+    let ga = o.geom_a.xyz;
+    let gb = o.geom_b.xyz;
+    if (o.kind == 0u) {
+        let d = x - min(max(x, ga), gb);
+        let len = len3(d);
+        if (len > 1e-30) {
+            return d / len;
+        }
+        var best = 3.4e38;
+        var n = vec3<f32>(0.0);
+        nearer_face(&best, &n, x.x - ga.x, gb.x - x.x, gb.x - ga.x, vec3<f32>(1.0, 0.0, 0.0));
+        nearer_face(&best, &n, x.y - ga.y, gb.y - x.y, gb.y - ga.y, vec3<f32>(0.0, 1.0, 0.0));
+        nearer_face(&best, &n, x.z - ga.z, gb.z - x.z, gb.z - ga.z, vec3<f32>(0.0, 0.0, 1.0));
+        return n;
+    }
+    if (o.kind == 1u) {
+        let d = x - ga;
+        let len = len3(d);
+        if (len > 1e-30) {
+            return d / len;
+        }
+    }
+    return vec3<f32>(0.0);
+}
+
 // No-slip factor 1 + β of the viscous wall term (forces.rs `no_slip_factor`, SPEC §4.1).
 fn no_slip_factor(obj: u32, xi: vec3<f32>, xb: vec3<f32>) -> f32 {
     let o = objects[obj];
@@ -68,6 +111,40 @@ fn liquid_from_boundary(rho: f32, pr: f32, n_l: f32, vi: vec3<f32>, m_b: f32, vb
     var a = grad * (-n_l * m_b * bracket * params.kappa_s);
     a += (vb - vi) * (no_slip * params.kappa_v * params.eta / rho * (m_b / rho) * lap_viscosity(k, r));
     return a;
+}
+
+// One solid particle's wall contacts for Coulomb friction (forces.rs `WallContact`): the load
+// L = Σμa_p of the pairs' contact-pressure accelerations, Σμ|a_p| and Σμ|a_p|v_b (README: deviations
+// from SPEC).
+struct WallContact {
+    load: vec3<f32>,
+    weight: f32,
+    vel: vec3<f32>,
+}
+
+fn wall_contact_add(c: ptr<function, WallContact>, mu: f32, a_p: vec3<f32>, pushes: bool, vb: vec3<f32>) {
+    if (pushes) {
+        let w = mu * len3(a_p);
+        (*c).load += a_p * mu;
+        (*c).weight += w;
+        (*c).vel += vb * w;
+    }
+}
+
+// −v̂_t min(|L|, |v_t|/Δt_up): kinetic Coulomb friction, or the stick regime below one step's sliding.
+fn wall_contact_friction(c: WallContact, vi: vec3<f32>) -> vec3<f32> {
+    let bound = len3(c.load);
+    if (c.weight <= 0.0 || bound <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let n = c.load / bound;
+    let vrel = vi - c.vel / c.weight;
+    let vt = vrel - n * dot3(vrel, n);
+    let speed = len3(vt);
+    if (speed <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    return vt * -min(bound / speed, 1.0 / params.dt_upper);
 }
 
 // Pair factor of the liquid–void attraction (3.4) (forces.rs `wicking_pair`, SPEC §3.12, D-22).
@@ -270,7 +347,10 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    // boundary contact (mirror pressure, SPEC §4.1) and artificial viscosity against walls
+    // boundary contact (mirror pressure, SPEC §4.1) and artificial viscosity against walls; an object
+    // with Coulomb contact damps only the normal relative velocity and adds Coulomb friction (README:
+    // deviations from SPEC)
+    var contact = WallContact(vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
@@ -290,11 +370,23 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
                     bracket = pi + o.pressure / (o.density * o.density);
                 }
                 let vb = boundary_vel[j];
-                let pib = artificial_viscosity(vi - vb.xyz, xib, r, ks.h, params.c_s, rho);
+                var vib = vi - vb.xyz;
+                if (o.friction >= 0.0) {
+                    let n = surface_normal(o, xi);
+                    if (dot3(n, n) > 0.0) {
+                        vib = n * dot3(n, vib);
+                    }
+                }
+                let pib = artificial_viscosity(vib, xib, r, ks.h, params.c_s, rho);
                 a += grad * (vb.w * (-n_s * bracket - pib));
+                if (o.friction > 0.0) {
+                    // the pressure part alone; grad ∥ −x_ib, so it pushes i off the wall when nˢ·bracket > 0
+                    wall_contact_add(&contact, o.friction, grad * (vb.w * (-n_s * bracket)), n_s * bracket > 0.0, vb.xyz);
+                }
             }
         }
     }
+    a += wall_contact_friction(contact, vi);
     // friction reaction (2.17, D-18) and reaction of the liquid–void attraction (3.4): −(m_j/ρ_j) × the
     // pair term on liquid j (§3.12), in one walk over the liquid within R_×
     if (params.kbar > 0.0 || params.wicking > 0.0) {

@@ -70,11 +70,12 @@ impl Keyframe {
     }
 
     pub fn decode(bytes: &[u8]) -> Result<Keyframe, SnapshotError> {
-        let k: Keyframe = postcard::from_bytes(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))?;
-        if k.sim.layout != crate::sim::snapshot::SNAPSHOT_LAYOUT {
-            return Err(SnapshotError::Layout { found: k.sim.layout });
+        // `sim.layout` leads the encoding: check it before decoding a state of another layout.
+        let (layout, _) = postcard::take_from_bytes::<u32>(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))?;
+        if layout != crate::sim::snapshot::SNAPSHOT_LAYOUT {
+            return Err(SnapshotError::Layout { found: layout });
         }
-        Ok(k)
+        postcard::from_bytes(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))
     }
 }
 

@@ -28,6 +28,8 @@ pub struct BoundaryObject {
     pub shape: Region,
     pub motion: Motion,
     pub pressure: PressureMode,
+    /// Coulomb μ of solid contact (`Boundary::friction`; None: SPEC §4.1 contact).
+    pub friction: Option<f64>,
     pub spacing: f64,
     /// Set when the user drives this object (viewer tools).
     pub tool: Option<Tool>,
@@ -340,6 +342,7 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             shape: b.shape.clone(),
             motion: b.motion.clone(),
             pressure: b.pressure.clone(),
+            friction: b.friction,
             spacing: sp,
             tool: b.tool.clone(),
         });

@@ -430,6 +430,14 @@ pub struct Boundary {
     pub motion: Motion,
     #[serde(default = "d_mirror")]
     pub pressure: PressureMode,
+    /// How solid tissue slides on this object. `None` (default): SPEC §4.1's contact, whose artificial
+    /// viscosity acts on the whole relative velocity and so drags sliding tissue with a speed- and
+    /// resolution-dependent numerical friction. `Some(μ)`: Coulomb contact — the artificial viscosity
+    /// damps only the velocity along the object's surface normal, and the tangential force is
+    /// −μ|f_n| against the sliding, sticking below one step's worth of it (README: deviations from
+    /// SPEC). Tissue on a wet instrument ~0.1–0.2, on a dry tray ~0.3–0.6; `Some(0.0)` is frictionless.
+    #[serde(default)]
+    pub friction: Option<f64>,
     /// Marks the object as a tool the viewer's user drives with the mouse (a kinematic body, SPEC §4.1).
     #[serde(default)]
     pub tool: Option<Tool>,

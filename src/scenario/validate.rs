@@ -482,6 +482,15 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             Check::positive(&format!("{f}.pressure.density"), *density, "kg/m³")?;
             Check::finite(&format!("{f}.pressure.pressure"), *pressure)?;
         }
+        if let Some(mu) = b.friction {
+            Check::range(
+                &format!("{f}.friction"),
+                mu,
+                0.0,
+                2.0,
+                "give Some(μ) with μ in [0, 2] (tissue on a tray ~0.3–0.6; 0 is frictionless), or leave it out",
+            )?;
+        }
         if let Some(tool) = &b.tool {
             Check::positive(&format!("{f}.tool.max_speed"), tool.max_speed, "m/s")?;
             if tool.max_speed > 100.0 {

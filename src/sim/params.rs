@@ -255,6 +255,21 @@ impl Params {
         [p.x as f64 + self.origin[0], p.y as f64 + self.origin[1], p.z as f64 + self.origin[2]]
     }
 
+    /// Upper bound of every Δt the step can take (fixed, or the sound and Δt_max bounds of (2.70) ×
+    /// the CFL factor): the relaxation time of the stick regime of wall friction, so that friction never
+    /// reverses a sliding velocity within one step (`cpu::forces::wall_friction`).
+    pub fn dt_upper(&self) -> f32 {
+        if let Some(fixed) = self.fixed_dt {
+            return fixed;
+        }
+        let c = self.c_max();
+        let mut dt = self.dt_max;
+        if c > 0.0 {
+            dt = dt.min(self.cfl_sound * self.h_min() / (3.0 * c));
+        }
+        dt * self.cfl_factor
+    }
+
     /// Largest signal speed of the phases present.
     pub fn c_max(&self) -> f32 {
         let cl = if self.has_liquid { self.c_l } else { 0.0 };

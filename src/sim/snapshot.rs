@@ -13,8 +13,9 @@ use super::RunStats;
 use serde::{Deserialize, Serialize};
 
 /// Layout version of the encoded snapshot: bumped whenever `CpuState` or the GPU's state buffers
-/// change, so that a keyframe of another build is refused instead of misread.
-pub const SNAPSHOT_LAYOUT: u32 = 1;
+/// change, so that a keyframe of another build is refused instead of misread. 2: boundary objects carry
+/// their solid contact (`BoundaryObject::friction`, `ObjectGpu`/`MotionGpu.friction`).
+pub const SNAPSHOT_LAYOUT: u32 = 2;
 
 /// One keyframe of a simulation.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -67,11 +68,13 @@ impl Snapshot {
     }
 
     pub fn decode(bytes: &[u8]) -> Result<Snapshot, SnapshotError> {
-        let s: Snapshot = postcard::from_bytes(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))?;
-        if s.layout != SNAPSHOT_LAYOUT {
-            return Err(SnapshotError::Layout { found: s.layout });
+        // The layout leads the encoding: read it first, so that another build's keyframe is named as
+        // such rather than failing somewhere inside the state.
+        let (layout, _) = postcard::take_from_bytes::<u32>(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))?;
+        if layout != SNAPSHOT_LAYOUT {
+            return Err(SnapshotError::Layout { found: layout });
         }
-        Ok(s)
+        postcard::from_bytes(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))
     }
 }
 
@@ -81,5 +84,22 @@ pub fn check_eq<T: PartialEq + std::fmt::Debug>(what: &str, snap: T, sim: T) -> 
         Ok(())
     } else {
         Err(SnapshotError::Mismatch(format!("{what}: {snap:?} in the keyframe, {sim:?} in the simulation")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A keyframe of another layout is refused by its layout number, even when its state no longer
+    /// decodes under this build's types.
+    #[test]
+    fn another_layout_is_named_before_its_state_is_decoded() {
+        let mut bytes = postcard::to_stdvec(&(SNAPSHOT_LAYOUT - 1)).expect("encode");
+        bytes.extend_from_slice(&[0xff; 16]);
+        match Snapshot::decode(&bytes) {
+            Err(SnapshotError::Layout { found }) => assert_eq!(found, SNAPSHOT_LAYOUT - 1),
+            other => panic!("expected a layout error, got {other:?}"),
+        }
     }
 }

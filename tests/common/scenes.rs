@@ -117,3 +117,26 @@ pub fn hanging_cut(blade_cut: bool) -> Scenario {
     );
     Scenario::from_str_named(&text, "hanging_cut.ron").expect("valid")
 }
+
+/// A 3-D tissue block 16 × 16 × 8 mm (Δx_s = 2 mm, 256 particles) resting on a plate with Coulomb
+/// contact `Some(μ)` or SPEC §4.1's contact (`None`), with initial velocity `v0` along +x and gravity
+/// `gravity` (tilt it for an inclined plane): the textbook sliding block (README: deviations from SPEC).
+pub fn sliding_block(mu: Option<f64>, v0: f64, gravity: [f64; 3]) -> Scenario {
+    let [gx, gy, gz] = gravity;
+    let friction = mu.map(|m| format!("friction: Some({m:?}),")).unwrap_or_default();
+    let text = format!(
+        r#"Scenario(
+        name: "sliding_block", dimensions: 3,
+        domain: Domain(min: (-0.05, -0.02, -0.01), max: (0.05, 0.02, 0.03)),
+        gravity: ({gx:?}, {gy:?}, {gz:?}),
+        solid: Some(Solid(density: 1000.0, c10: 2e4, c01: 0.0, k_s: 1e5, n_sat: 1.0, k_sat: 0.0)),
+        numerics: Numerics(dx_solid: Some(0.002)),
+        particles: [ Box(phase: Solid, min: (-0.024, -0.008, 0.0), max: (-0.008, 0.008, 0.008), fraction: 1.0,
+                         velocity: Some(Uniform(({v0:?}, 0.0, 0.0)))) ],
+        boundaries: [ Boundary(name: "plate", shape: Box(min: (-0.045, -0.016, -0.006), max: (0.045, 0.016, 0.0)),
+                               {friction}) ],
+        duration: 0.1,
+    )"#
+    );
+    Scenario::from_str_named(&text, "sliding_block.ron").expect("test scene is valid")
+}

@@ -7,7 +7,7 @@
 //! viscosity (2.54)–(2.58) over current neighbours, boundary contact, friction and attraction reactions,
 //! membrane reactions gathered from the liquid (§4.1: no atomics), g. XSPH (2.69) for both.
 
-use super::{BoundarySet, LiquidSet, Nbrs, ObjectPressure, SolidSet};
+use super::{BoundarySet, LiquidSet, Nbrs, ObjectContact, SolidSet};
 use crate::scenario::SolidFlags;
 use crate::sim::params::Params;
 use glam::Vec3;
@@ -18,7 +18,7 @@ pub struct ForceCtx<'a> {
     /// Current surface geometry of each boundary object (no-slip extrapolation).
     pub geoms: &'a [ObjectGeom],
     pub gravity: Vec3,
-    pub pressure_modes: &'a [ObjectPressure],
+    pub contacts: &'a [ObjectContact],
     /// During relaxation with `gravity_solid_only`, the liquid feels no gravity.
     pub gravity_liquid: bool,
 }
@@ -60,6 +60,43 @@ pub struct ObjectGeom {
     pub b: Vec3,
 }
 
+/// Outward unit normal of an object's surface nearest to x (twin of `surface_normal` in forces.wgsl):
+/// a box's from its closest point, or, for x inside it, its nearest face (axes of zero extent — z in
+/// 2-D — have no faces); a sphere's radial direction. None at a sphere's centre and for kind 2.
+pub fn surface_normal(g: &ObjectGeom, x: Vec3) -> Option<Vec3> {
+    match g.kind {
+        0 => {
+            let d = x - x.clamp(g.a, g.b);
+            let len = d.length();
+            if len > 1e-30 {
+                return Some(d / len);
+            }
+            let mut best = f32::INFINITY;
+            let mut n = None;
+            for (k, axis) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
+                if g.b[k] > g.a[k] {
+                    let (lo, hi) = (x[k] - g.a[k], g.b[k] - x[k]);
+                    if lo < best {
+                        best = lo;
+                        n = Some(-axis);
+                    }
+                    if hi < best {
+                        best = hi;
+                        n = Some(axis);
+                    }
+                }
+            }
+            n
+        }
+        1 => {
+            let d = x - g.a;
+            let len = d.length();
+            (len > 1e-30).then(|| d / len)
+        }
+        _ => None,
+    }
+}
+
 /// Largest ghost-velocity extrapolation factor β (Morris, Fox & Zhu 1997).
 pub const NO_SLIP_BETA_MAX: f32 = 1.5;
 
@@ -93,6 +130,56 @@ pub fn no_slip_factor(g: &ObjectGeom, xi: Vec3, xb: Vec3) -> f32 {
     1.0 + (db / di).min(NO_SLIP_BETA_MAX)
 }
 
+/// One solid particle's wall contacts, gathered for Coulomb friction (README: deviations from SPEC).
+/// Each pair contributes its contact-pressure acceleration a_p (the mirror pressure force of SPEC §4.1,
+/// pushing the particle off the wall) weighted by the object's μ. Their vector sum L = Σμa_p is the
+/// friction bound |L| = μ × the net normal load along n̂ = L/|L| (pair components along the wall cancel,
+/// so a flat wall's load is its normal force, not the sum of the pair magnitudes); the walls' velocity
+/// is the mean v_b weighted by μ|a_p|. Twin of `wall_contact_*` in `shaders/forces.wgsl`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct WallContact {
+    /// L = Σ μ a_p [m/s²].
+    pub load: Vec3,
+    /// Σ μ |a_p|.
+    pub weight: f32,
+    /// Σ μ |a_p| v_b.
+    pub vel: Vec3,
+}
+
+impl WallContact {
+    /// Adds one pair's contact-pressure acceleration a_p (zero when the pair pulls: a prescribed
+    /// suction pressure carries no load).
+    #[inline]
+    pub fn add(&mut self, mu: f32, a_p: Vec3, pushes: bool, vb: Vec3) {
+        if pushes {
+            let w = mu * a_p.length();
+            self.load += a_p * mu;
+            self.weight += w;
+            self.vel += vb * w;
+        }
+    }
+
+    /// Friction acceleration of a particle moving at v_i: −v̂_t min(|L|, |v_t|/Δt_up), with v_t the
+    /// velocity relative to the walls tangent to n̂. Sliding (|v_t| > |L|Δt_up) feels the kinetic
+    /// Coulomb force; slower motion is removed at the rate 1/Δt_up, which with every Δt ≤ Δt_up
+    /// (`Params::dt_upper`) never reverses it within a step — the stick regime.
+    #[inline]
+    pub fn friction(&self, vi: Vec3, dt_upper: f32) -> Vec3 {
+        let bound = self.load.length();
+        if self.weight <= 0.0 || bound <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let n = self.load / bound;
+        let vrel = vi - self.vel / self.weight;
+        let vt = vrel - n * vrel.dot(n);
+        let speed = vt.length();
+        if speed <= 0.0 {
+            return Vec3::ZERO;
+        }
+        vt * -(bound / speed).min(1.0 / dt_upper)
+    }
+}
+
 /// Acceleration a liquid particle (ρ, p, nˡ, v) receives from one boundary-like neighbour
 /// (wall particle or membrane particle) of liquid-equivalent mass m_b (SPEC §4.1, §3.6). In mirror mode
 /// the wall shows ρ_b = ρ_i and the hydrostatically extrapolated p_b = max(p_i + ρ_i g·(x_b − x_i), 0)
@@ -108,7 +195,7 @@ pub fn liquid_from_boundary(
     vb: Vec3,
     xib: Vec3,
     r: f32,
-    mode: ObjectPressure,
+    mode: ObjectContact,
     no_slip: f32,
     g: Vec3,
 ) -> Vec3 {
@@ -146,8 +233,6 @@ pub fn cohesion_pair(s: f32, radius: f32, r: f32) -> f32 {
     }
     s * (std::f32::consts::PI * r / (2.0 * radius)).cos()
 }
-
-const MIRROR: ObjectPressure = ObjectPressure { density: -1.0, pressure: 0.0 };
 
 pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet, nb: &Nbrs) -> Vec<Vec3> {
     let p = c.p;
@@ -192,8 +277,7 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
             nb.boundary.for_each(xi, kl.r, |j, xij, r| {
                 let obj = b.object[j] as usize;
                 let slip = no_slip_factor(&c.geoms[obj], xi, b.x[j]);
-                a +=
-                    liquid_from_boundary(p, rho, pr, n_l, vi, b.m_l[j], b.v[j], xij, r, c.pressure_modes[obj], slip, g);
+                a += liquid_from_boundary(p, rho, pr, n_l, vi, b.m_l[j], b.v[j], xij, r, c.contacts[obj], slip, g);
                 if p.cohesion_lb > 0.0 && r > 0.0 {
                     // Adhesion (3.3) to walls and plates.
                     a -= xij * (cohesion_pair(p.cohesion_lb, kl.r, r) * inv_m / r);
@@ -203,7 +287,20 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
             let mut f = Vec3::ZERO;
             nb.solid.for_each(xi, kx.r, |j, xij, r| {
                 if r < kl.r && s.flags[j] & SolidFlags::MEMBRANE != 0 {
-                    a += liquid_from_boundary(p, rho, pr, n_l, vi, s.m_bl[j], s.v[j], xij, r, MIRROR, 1.0, g);
+                    a += liquid_from_boundary(
+                        p,
+                        rho,
+                        pr,
+                        n_l,
+                        vi,
+                        s.m_bl[j],
+                        s.v[j],
+                        xij,
+                        r,
+                        ObjectContact::MIRROR,
+                        1.0,
+                        g,
+                    );
                 }
                 if p.kbar > 0.0 {
                     let k = friction_coefficient(p.kbar, n_s, s.n_s[j]);
@@ -231,6 +328,7 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
     let cap = s.bond_capacity;
     let period = p.periodic_len();
     let g_l = if c.gravity_liquid { c.gravity } else { Vec3::ZERO };
+    let dt_upper = p.dt_upper();
     (0..s.x.len())
         .into_par_iter()
         .with_min_len(super::MIN_PAR_LEN)
@@ -277,19 +375,33 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                 acc -= grad * pij;
                 a += acc * s.m[j];
             });
-            // Boundary contact (mirror pressure, SPEC §4.1) and artificial viscosity against walls.
+            // Boundary contact (mirror pressure, SPEC §4.1) and artificial viscosity against walls; an
+            // object with Coulomb contact damps only the normal relative velocity and adds Coulomb
+            // friction (README: deviations from SPEC).
+            let mut contact = WallContact::default();
             nb.boundary.for_each(xi, support, |j, xib, r| {
                 let grad = xib * ks.grad_cubic_factor(r);
-                let mode = c.pressure_modes[b.object[j] as usize];
+                let obj = b.object[j] as usize;
+                let mode = c.contacts[obj];
                 let bracket = if mode.density < 0.0 {
                     2.0 * pr.max(0.0) * inv2
                 } else {
                     pi + mode.pressure / (mode.density * mode.density)
                 };
-                let pib =
-                    artificial_viscosity(vi - b.v[j], xib, r, ks.h, p.c_s, rho, p.av_alpha, p.av_beta, p.av_gamma);
+                let mut vib = vi - b.v[j];
+                if mode.friction >= 0.0
+                    && let Some(n) = surface_normal(&c.geoms[obj], xi)
+                {
+                    vib = n * n.dot(vib);
+                }
+                let pib = artificial_viscosity(vib, xib, r, ks.h, p.c_s, rho, p.av_alpha, p.av_beta, p.av_gamma);
                 a += grad * (b.m_s[j] * (-n_s * bracket - pib));
+                if mode.friction > 0.0 {
+                    // the pressure part alone; grad ∥ −x_ib, so it pushes i off the wall when nˢ·bracket > 0
+                    contact.add(mode.friction, grad * (b.m_s[j] * (-n_s * bracket)), n_s * bracket > 0.0, b.v[j]);
+                }
             });
+            a += contact.friction(vi, dt_upper);
             // Friction reaction (2.17, D-18) and reaction of the liquid–void attraction (3.4):
             // −(m_j/ρ_j) × the pair term on liquid j (§3.12), in one walk over the liquid within R_×.
             if p.kbar > 0.0 || p.wicking > 0.0 {
@@ -313,7 +425,18 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                 nb.liquid.for_each(xi, kl.r, |j, xji, r| {
                     let xjb = -xji;
                     let on_j = liquid_from_boundary(
-                        p, l.rho[j], l.p[j], l.n_l[j], l.v[j], s.m_bl[i], vi, xjb, r, MIRROR, 1.0, g_l,
+                        p,
+                        l.rho[j],
+                        l.p[j],
+                        l.n_l[j],
+                        l.v[j],
+                        s.m_bl[i],
+                        vi,
+                        xjb,
+                        r,
+                        ObjectContact::MIRROR,
+                        1.0,
+                        g_l,
                     );
                     f -= on_j * l.m[j];
                 });

@@ -97,11 +97,18 @@ pub struct BoundarySet {
     pub object: Vec<u32>,
 }
 
-/// Per boundary object: pressure mode as numbers (mirror: density < 0).
+/// Per boundary object: how its particles act on material ones — the pressure mode as numbers
+/// (mirror: density < 0) and the solid contact (friction < 0: SPEC §4.1; ≥ 0: Coulomb μ).
 #[derive(Clone, Copy, Debug)]
-pub struct ObjectPressure {
+pub struct ObjectContact {
     pub density: f32,
     pub pressure: f32,
+    pub friction: f32,
+}
+
+impl ObjectContact {
+    /// A mirror wall with SPEC §4.1's contact (membrane particles toward the liquid).
+    pub const MIRROR: ObjectContact = ObjectContact { density: -1.0, pressure: 0.0, friction: -1.0 };
 }
 
 /// Cell lists of the three sets.
@@ -154,7 +161,7 @@ pub struct CpuSolver {
     pub params: Params,
     pub st: CpuState,
     pub grids: Grids,
-    pub pressure_modes: Vec<ObjectPressure>,
+    pub contacts: Vec<ObjectContact>,
     /// Each object's shape at rest (simulation coordinates); `geoms` is it at the current pose.
     shapes: Vec<forces::ObjectGeom>,
     pub geoms: Vec<forces::ObjectGeom>,
@@ -227,14 +234,17 @@ impl CpuSolver {
             m_s: g.boundary_mass_solid.iter().map(|&m| m as f32).collect(),
             object: g.boundary_object.clone(),
         };
-        let pressure_modes = g
+        let contacts = g
             .objects
             .iter()
-            .map(|o| match o.pressure {
-                crate::scenario::PressureMode::Mirror => ObjectPressure { density: -1.0, pressure: 0.0 },
-                crate::scenario::PressureMode::Prescribed { density, pressure } => {
-                    ObjectPressure { density: density as f32, pressure: pressure as f32 }
-                }
+            .map(|o| {
+                let (density, pressure) = match o.pressure {
+                    crate::scenario::PressureMode::Mirror => (-1.0, 0.0),
+                    crate::scenario::PressureMode::Prescribed { density, pressure } => {
+                        (density as f32, pressure as f32)
+                    }
+                };
+                ObjectContact { density, pressure, friction: o.friction.map_or(-1.0, |mu| mu as f32) }
             })
             .collect();
         let shapes: Vec<forces::ObjectGeom> = g.objects.iter().map(|o| emit::region_geom(&params, &o.shape)).collect();
@@ -254,7 +264,7 @@ impl CpuSolver {
             params,
             st: CpuState { liquid, solid, boundary, objects: g.objects.clone(), gravity, emit, ..Default::default() },
             grids: Grids::default(),
-            pressure_modes,
+            contacts,
             last_good: CpuState::default(),
         };
         solver.move_boundaries(0.0);
@@ -403,7 +413,7 @@ impl CpuSolver {
             p,
             geoms: &self.geoms,
             gravity: self.st.gravity,
-            pressure_modes: &self.pressure_modes,
+            contacts: &self.contacts,
             gravity_liquid: !(self.st.damping > 0.0 && self.st.damping_solid_gravity_only),
         };
         let a_l = forces::forces_liquid(&ctx, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb);

@@ -10,7 +10,7 @@ use wgpu::util::DeviceExt;
 
 /// Smallest buffer size: zero-sized buffers cannot be bound, empty sets still bind theirs, and a
 /// runtime-sized array must hold one element of its struct (the largest, `StressGpu`, is 96 bytes; an
-/// empty object or motion table is bound as one zeroed 80-byte `ObjectGpu` / `MotionGpu`).
+/// empty object or motion table is bound as one zeroed 96-byte `ObjectGpu` / `MotionGpu`).
 const MIN_BYTES: u64 = 256;
 
 /// All simulation buffers by slot; the grid-generic slots resolve per set.

@@ -98,7 +98,8 @@ pub struct SimParams {
     /// s_ll, s_lb of (3.3) [N]; 0: off.
     pub cohesion_ll: f32,
     pub cohesion_lb: f32,
-    pub _pad0: u32,
+    /// Upper bound of Δt (`Params::dt_upper`): the stick relaxation time of wall friction.
+    pub dt_upper: f32,
     pub _pad1: u32,
 }
 
@@ -172,7 +173,7 @@ impl SimParams {
             wicking: p.wicking,
             cohesion_ll: p.cohesion_ll,
             cohesion_lb: p.cohesion_lb,
-            _pad0: 0,
+            dt_upper: p.dt_upper(),
             _pad1: 0,
         }
     }
@@ -203,7 +204,8 @@ pub struct StepState {
     pub _pad2: u32,
 }
 
-/// `ObjectGpu` (common.wgsl): one boundary object's current pose, velocity and pressure mode.
+/// `ObjectGpu` (common.wgsl): one boundary object's current pose, velocity, pressure mode and
+/// Coulomb friction coefficient of solid contact.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct ObjectGpu {
@@ -216,6 +218,10 @@ pub struct ObjectGpu {
     pub kind: u32,
     /// 1 + the cut axis of a `blade_cut` scalpel (`cpu::fracture::blade_axis`); 0 for any other object.
     pub blade: u32,
+    pub friction: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 /// `MotionGpu` (common.wgsl): one boundary object's rest shape, pressure mode and analytic motion.
@@ -230,6 +236,10 @@ pub struct MotionGpu {
     pub pressure: f32,
     pub kind: u32,
     pub motion: u32,
+    pub friction: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 /// Steps per batch: the length of `BatchState`'s per-step arrays.
@@ -383,12 +393,12 @@ pub struct GridSet {
 const _: () = assert!(size_of::<KernelConsts>() == 32);
 const _: () = assert!(size_of::<SimParams>() == 416);
 const _: () = assert!(size_of::<StepState>() == 48);
-const _: () = assert!(size_of::<ObjectGpu>() == 80);
+const _: () = assert!(size_of::<ObjectGpu>() == 96);
 const _: () = assert!(size_of::<Mat3Gpu>() == 48);
 const _: () = assert!(size_of::<StressGpu>() == 96);
 const _: () = assert!(size_of::<GridSet>() == 16);
 const _: () = assert!(size_of::<CellEntry>() == 16);
-const _: () = assert!(size_of::<MotionGpu>() == 80);
+const _: () = assert!(size_of::<MotionGpu>() == 96);
 const _: () = assert!(size_of::<BatchState>() == 112 + 8 * MAX_BATCH);
 const _: () = assert!(size_of::<EmitterGpu>() == 96);
 const _: () = assert!(size_of::<SinkGpu>() == 48);
@@ -418,6 +428,7 @@ pub const LAYOUTS: &[StructLayout] = &[
             ("kappa_s", offset_of!(SimParams, kappa_s)),
             ("wicking", offset_of!(SimParams, wicking)),
             ("cohesion_lb", offset_of!(SimParams, cohesion_lb)),
+            ("dt_upper", offset_of!(SimParams, dt_upper)),
         ],
     ),
     (
@@ -436,6 +447,7 @@ pub const LAYOUTS: &[StructLayout] = &[
             ("vel", offset_of!(ObjectGpu, vel)),
             ("density", offset_of!(ObjectGpu, density)),
             ("kind", offset_of!(ObjectGpu, kind)),
+            ("friction", offset_of!(ObjectGpu, friction)),
         ],
     ),
     ("Mat3Gpu", size_of::<Mat3Gpu>(), &[("c1", offset_of!(Mat3Gpu, c1)), ("c2", offset_of!(Mat3Gpu, c2))]),
@@ -445,7 +457,11 @@ pub const LAYOUTS: &[StructLayout] = &[
     (
         "MotionGpu",
         size_of::<MotionGpu>(),
-        &[("times", offset_of!(MotionGpu, times)), ("motion", offset_of!(MotionGpu, motion))],
+        &[
+            ("times", offset_of!(MotionGpu, times)),
+            ("motion", offset_of!(MotionGpu, motion)),
+            ("friction", offset_of!(MotionGpu, friction)),
+        ],
     ),
     (
         "BatchState",

@@ -38,7 +38,7 @@ pub mod passes;
 pub mod shaders;
 
 use super::cpu::forces::ObjectGeom;
-use super::cpu::{CpuSolver, ObjectPressure};
+use super::cpu::{CpuSolver, ObjectContact};
 use super::params::Params;
 use super::state::{BoundaryState, PhaseState, SolidExtra, State};
 use super::{Command, DtLimit, SimError, StepInfo};
@@ -88,7 +88,7 @@ pub struct GpuSolver {
     objects: Vec<BoundaryObject>,
     /// Each object's shape at rest (simulation coordinates), as `CpuSolver::shapes`.
     shapes: Vec<ObjectGeom>,
-    pressure_modes: Vec<ObjectPressure>,
+    contacts: Vec<ObjectContact>,
     boundary_x0: Vec<Vec3>,
     boundary_object: Vec<u32>,
     gravity: Vec3,
@@ -276,7 +276,7 @@ impl GpuSolver {
         let sp = SimParams::new(&params, counts, st.gravity, st.damping, gravity_liquid);
         solver_init.push((Slot::Params, bytes(&[sp])));
         solver_init.push((Slot::Step, bytes(&[StepState::default()])));
-        let objects = objects_at(&params, &st.objects, &shapes, &cpu.pressure_modes, st.t);
+        let objects = objects_at(&params, &st.objects, &shapes, &cpu.contacts, st.t);
         solver_init.push((Slot::Objects, bytes(&objects)));
         let wg_template = [
             capacity.div_ceil(passes::WORKGROUP),
@@ -293,7 +293,7 @@ impl GpuSolver {
         (batch0.t_hi, batch0.t_lo, batch0.wg) = (clock[0], clock[1], wg_template);
         (batch0.n_liquid, batch0.emitted, batch0.sunk) = (counts.liquid, st.emit.emitted as u32, st.emit.sunk as u32);
         solver_init.push((Slot::Batch, bytes(&[batch0])));
-        solver_init.push((Slot::Motions, bytes(&motion_table(&params, &st.objects, &shapes, &cpu.pressure_modes))));
+        solver_init.push((Slot::Motions, bytes(&motion_table(&params, &st.objects, &shapes, &cpu.contacts))));
         solver_init.push((Slot::IndirectArgs, vec![0u8; 4 * 18]));
         for (slot, n) in [
             (Slot::LiquidOrder, capacity as usize),
@@ -334,7 +334,7 @@ impl GpuSolver {
             steps: st.steps,
             objects: st.objects.clone(),
             shapes,
-            pressure_modes: cpu.pressure_modes.clone(),
+            contacts: cpu.contacts.clone(),
             boundary_x0: st.boundary.x0.clone(),
             boundary_object: st.boundary.object.clone(),
             gravity: st.gravity,
@@ -549,7 +549,7 @@ impl GpuSolver {
     }
 
     fn upload_objects(&self, t: f64) -> Result<(), GpuError> {
-        let objs = objects_at(&self.params, &self.objects, &self.shapes, &self.pressure_modes, t);
+        let objs = objects_at(&self.params, &self.objects, &self.shapes, &self.contacts, t);
         if !objs.is_empty() {
             self.ctx.queue.write_buffer(self.buffer(Slot::Objects)?, 0, bytemuck::cast_slice(&objs));
         }
@@ -557,7 +557,7 @@ impl GpuSolver {
     }
 
     fn upload_motions(&self) -> Result<(), GpuError> {
-        let m = motion_table(&self.params, &self.objects, &self.shapes, &self.pressure_modes);
+        let m = motion_table(&self.params, &self.objects, &self.shapes, &self.contacts);
         if !m.is_empty() {
             self.ctx.queue.write_buffer(self.buffer(Slot::Motions)?, 0, bytemuck::cast_slice(&m));
         }
@@ -1205,7 +1205,7 @@ fn objects_at(
     params: &Params,
     objects: &[BoundaryObject],
     shapes: &[ObjectGeom],
-    modes: &[ObjectPressure],
+    modes: &[ObjectContact],
     t: f64,
 ) -> Vec<ObjectGpu> {
     let three = params.dim.n() == 3;
@@ -1221,7 +1221,7 @@ fn objects_at(
             if g.kind == 0 {
                 g.b += d;
             }
-            let m = modes.get(k).copied().unwrap_or(ObjectPressure { density: -1.0, pressure: 0.0 });
+            let m = modes.get(k).copied().unwrap_or(ObjectContact::MIRROR);
             ObjectGpu {
                 geom_a: v4(g.a, 0.0),
                 geom_b: v4(g.b, 0.0),
@@ -1231,6 +1231,8 @@ fn objects_at(
                 pressure: m.pressure,
                 kind: g.kind,
                 blade: blade_code(params, o),
+                friction: m.friction,
+                ..ObjectGpu::default()
             }
         })
         .collect()
@@ -1247,7 +1249,7 @@ fn motion_table(
     params: &Params,
     objects: &[BoundaryObject],
     shapes: &[ObjectGeom],
-    modes: &[ObjectPressure],
+    modes: &[ObjectContact],
 ) -> Vec<MotionGpu> {
     use crate::scenario::Motion;
     let three = params.dim.n() == 3;
@@ -1257,7 +1259,7 @@ fn motion_table(
         .zip(shapes)
         .enumerate()
         .map(|(k, (o, g))| {
-            let m = modes.get(k).copied().unwrap_or(ObjectPressure { density: -1.0, pressure: 0.0 });
+            let m = modes.get(k).copied().unwrap_or(ObjectContact::MIRROR);
             let (vec, times, motion) = match &o.motion {
                 Motion::Static => ([0.0; 4], [0.0; 4], 0),
                 Motion::Translate { velocity, start, stop } => {
@@ -1278,6 +1280,8 @@ fn motion_table(
                 pressure: m.pressure,
                 kind: g.kind,
                 motion,
+                friction: m.friction,
+                ..MotionGpu::default()
             }
         })
         .collect()
