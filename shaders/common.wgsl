@@ -416,6 +416,31 @@ fn inlet_velocity(x: vec3<f32>) -> vec4<f32> {
 }
 
 // ---- small helpers mirroring glam (same operation order) ----
+// Nearest face of box o to a point x inside it, over the first `dims` axes (cpu::forces::nearest_face):
+// side −1 for the low face, +1 for the high one; the first axis and the low side win ties.
+struct BoxFace {
+    axis: i32,
+    side: f32,
+}
+
+fn nearest_face(o: ObjectGpu, x: vec3<f32>, dims: i32) -> BoxFace {
+    var best = 3.0e38;
+    var face = BoxFace(0, -1.0);
+    for (var a = 0; a < dims; a++) {
+        let lo = x[a] - o.geom_a[a];
+        let hi = o.geom_b[a] - x[a];
+        if (lo < best) {
+            best = lo;
+            face = BoxFace(a, -1.0);
+        }
+        if (hi < best) {
+            best = hi;
+            face = BoxFace(a, 1.0);
+        }
+    }
+    return face;
+}
+
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return (a.x * b.x) + (a.y * b.y) + (a.z * b.z);
 }

@@ -25,37 +25,20 @@ fn friction_coefficient(ns_i: f32, ns_j: f32) -> f32 {
     return params.kbar * max(1.0 - 0.5 * (ns_i + ns_j), 0.0);
 }
 
-// One axis of a box for `surface_normal`: keeps the nearer of its two faces if nearer than *best.
-fn nearer_face(best: ptr<function, f32>, n: ptr<function, vec3<f32>>, lo: f32, hi: f32, extent: f32, axis: vec3<f32>) {
-    if (extent > 0.0) {
-        if (lo < *best) {
-            *best = lo;
-            *n = -axis;
-        }
-        if (hi < *best) {
-            *best = hi;
-            *n = axis;
-        }
-    }
-}
-
 // Outward unit normal of object o's surface nearest to x (forces.rs `surface_normal`): a box's from
-// its closest point or, inside it, its nearest face (axes of zero extent have none); a sphere's radial
+// its closest point or, inside it, its nearest face (`nearest_face`, common.wgsl); a sphere's radial
 // direction. Zero where the CPU twin has none.
-fn surface_normal(o: ObjectGpu, x: vec3<f32>) -> vec3<f32> {
+fn surface_normal(o: ObjectGpu, x: vec3<f32>, dims: i32) -> vec3<f32> {
     let ga = o.geom_a.xyz;
-    let gb = o.geom_b.xyz;
     if (o.kind == 0u) {
-        let d = x - min(max(x, ga), gb);
+        let d = x - min(max(x, ga), o.geom_b.xyz);
         let len = len3(d);
         if (len > 1e-30) {
             return d / len;
         }
-        var best = 3.4e38;
+        let face = nearest_face(o, x, dims);
         var n = vec3<f32>(0.0);
-        nearer_face(&best, &n, x.x - ga.x, gb.x - x.x, gb.x - ga.x, vec3<f32>(1.0, 0.0, 0.0));
-        nearer_face(&best, &n, x.y - ga.y, gb.y - x.y, gb.y - ga.y, vec3<f32>(0.0, 1.0, 0.0));
-        nearer_face(&best, &n, x.z - ga.z, gb.z - x.z, gb.z - ga.z, vec3<f32>(0.0, 0.0, 1.0));
+        n[face.axis] = face.side;
         return n;
     }
     if (o.kind == 1u) {
@@ -351,6 +334,7 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     // with Coulomb contact damps only the normal relative velocity and adds Coulomb friction (README:
     // deviations from SPEC)
     var contact = WallContact(vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
+    let dims = select(2, 3, params.switches.x != 0u);
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
@@ -372,7 +356,7 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let vb = boundary_vel[j];
                 var vib = vi - vb.xyz;
                 if (o.friction >= 0.0) {
-                    let n = surface_normal(o, xi);
+                    let n = surface_normal(o, xi, dims);
                     if (dot3(n, n) > 0.0) {
                         vib = n * dot3(n, vib);
                     }

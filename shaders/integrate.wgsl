@@ -95,23 +95,9 @@ fn object_contact(x_in: vec3<f32>, v_in: vec3<f32>) -> Contact {
                 }
             }
             if (inside) {
-                var best = 3.0e38;
-                var axis = 0;
-                var side = -1.0;
-                for (var a = 0; a < dims; a++) {
-                    let lo = x[a] - o.geom_a[a];
-                    let hi = o.geom_b[a] - x[a];
-                    if (lo < best) {
-                        best = lo;
-                        axis = a;
-                        side = -1.0;
-                    }
-                    if (hi < best) {
-                        best = hi;
-                        axis = a;
-                        side = 1.0;
-                    }
-                }
+                let face = nearest_face(o, x, dims);
+                let axis = face.axis;
+                let side = face.side;
                 if (side < 0.0) {
                     x[axis] = o.geom_a[axis];
                 } else {

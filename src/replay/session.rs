@@ -70,12 +70,8 @@ impl Keyframe {
     }
 
     pub fn decode(bytes: &[u8]) -> Result<Keyframe, SnapshotError> {
-        // `sim.layout` leads the encoding: check it before decoding a state of another layout.
-        let (layout, _) = postcard::take_from_bytes::<u32>(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))?;
-        if layout != crate::sim::snapshot::SNAPSHOT_LAYOUT {
-            return Err(SnapshotError::Layout { found: layout });
-        }
-        postcard::from_bytes(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))
+        // `sim` is the first field, so the encoding leads with its layout.
+        crate::sim::snapshot::decode_checked(bytes)
     }
 }
 

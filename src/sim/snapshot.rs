@@ -68,14 +68,19 @@ impl Snapshot {
     }
 
     pub fn decode(bytes: &[u8]) -> Result<Snapshot, SnapshotError> {
-        // The layout leads the encoding: read it first, so that another build's keyframe is named as
-        // such rather than failing somewhere inside the state.
-        let (layout, _) = postcard::take_from_bytes::<u32>(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))?;
-        if layout != SNAPSHOT_LAYOUT {
-            return Err(SnapshotError::Layout { found: layout });
-        }
-        postcard::from_bytes(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))
+        decode_checked(bytes)
     }
+}
+
+/// Decodes a value whose encoding leads with a snapshot's `layout` (a `Snapshot`, or a replay keyframe
+/// that starts with one). The layout is read first, so another build's keyframe is named as such
+/// rather than failing somewhere inside the state.
+pub fn decode_checked<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, SnapshotError> {
+    let (layout, _) = postcard::take_from_bytes::<u32>(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))?;
+    if layout != SNAPSHOT_LAYOUT {
+        return Err(SnapshotError::Layout { found: layout });
+    }
+    postcard::from_bytes(bytes).map_err(|e| SnapshotError::Decode(e.to_string()))
 }
 
 /// `what` must be equal in the snapshot and the simulation.

@@ -60,10 +60,28 @@ pub struct ObjectGeom {
     pub b: Vec3,
 }
 
+/// Nearest face of box `g` to a point x inside it, over the first `dims` axes: (axis, side) with side
+/// −1 for the low face and +1 for the high one; the first axis and the low side win ties. Twin of
+/// `nearest_face` in `shaders/common.wgsl`.
+pub fn nearest_face(g: &ObjectGeom, x: Vec3, dims: usize) -> (usize, f32) {
+    let mut best = f32::INFINITY;
+    let (mut axis, mut side) = (0, -1.0);
+    for a in 0..dims {
+        let (lo, hi) = (x[a] - g.a[a], g.b[a] - x[a]);
+        if lo < best {
+            (best, axis, side) = (lo, a, -1.0);
+        }
+        if hi < best {
+            (best, axis, side) = (hi, a, 1.0);
+        }
+    }
+    (axis, side)
+}
+
 /// Outward unit normal of an object's surface nearest to x (twin of `surface_normal` in forces.wgsl):
-/// a box's from its closest point, or, for x inside it, its nearest face (axes of zero extent — z in
-/// 2-D — have no faces); a sphere's radial direction. None at a sphere's centre and for kind 2.
-pub fn surface_normal(g: &ObjectGeom, x: Vec3) -> Option<Vec3> {
+/// a box's from its closest point, or, for x inside it, its nearest face ([`nearest_face`]); a
+/// sphere's radial direction. None at a sphere's centre and for kind 2.
+pub fn surface_normal(g: &ObjectGeom, x: Vec3, dims: usize) -> Option<Vec3> {
     match g.kind {
         0 => {
             let d = x - x.clamp(g.a, g.b);
@@ -71,22 +89,10 @@ pub fn surface_normal(g: &ObjectGeom, x: Vec3) -> Option<Vec3> {
             if len > 1e-30 {
                 return Some(d / len);
             }
-            let mut best = f32::INFINITY;
-            let mut n = None;
-            for (k, axis) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
-                if g.b[k] > g.a[k] {
-                    let (lo, hi) = (x[k] - g.a[k], g.b[k] - x[k]);
-                    if lo < best {
-                        best = lo;
-                        n = Some(-axis);
-                    }
-                    if hi < best {
-                        best = hi;
-                        n = Some(axis);
-                    }
-                }
-            }
-            n
+            let (axis, side) = nearest_face(g, x, dims);
+            let mut n = Vec3::ZERO;
+            n[axis] = side;
+            Some(n)
         }
         1 => {
             let d = x - g.a;
@@ -329,6 +335,7 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
     let period = p.periodic_len();
     let g_l = if c.gravity_liquid { c.gravity } else { Vec3::ZERO };
     let dt_upper = p.dt_upper();
+    let dims = p.dim.n();
     (0..s.x.len())
         .into_par_iter()
         .with_min_len(super::MIN_PAR_LEN)
@@ -390,7 +397,7 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                 };
                 let mut vib = vi - b.v[j];
                 if mode.friction >= 0.0
-                    && let Some(n) = surface_normal(&c.geoms[obj], xi)
+                    && let Some(n) = surface_normal(&c.geoms[obj], xi, dims)
                 {
                     vib = n * n.dot(vib);
                 }

@@ -4,7 +4,7 @@
 //! keep their prescribed (here: fixed) state.
 
 use super::CpuState;
-use super::forces::ObjectGeom;
+use super::forces::{ObjectGeom, nearest_face};
 use crate::scenario::SolidFlags;
 use crate::sim::params::Params;
 use glam::Vec3;
@@ -76,24 +76,7 @@ pub fn object_contact(geoms: &[ObjectGeom], vel: &[Vec3], three_d: bool, x: &mut
         if g.kind == 0 {
             inside = (0..dims).all(|a| x[a] > g.a[a] && x[a] < g.b[a]);
             if inside {
-                // nearest face: smallest depth, first axis and the low side on ties
-                let mut best = f32::INFINITY;
-                let mut axis = 0usize;
-                let mut side = -1.0f32;
-                for a in 0..dims {
-                    let lo = x[a] - g.a[a];
-                    let hi = g.b[a] - x[a];
-                    if lo < best {
-                        best = lo;
-                        axis = a;
-                        side = -1.0;
-                    }
-                    if hi < best {
-                        best = hi;
-                        axis = a;
-                        side = 1.0;
-                    }
-                }
+                let (axis, side) = nearest_face(g, *x, dims);
                 x[axis] = if side < 0.0 { g.a[axis] } else { g.b[axis] };
                 n[axis] = side;
             }
