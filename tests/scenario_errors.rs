@@ -354,3 +354,32 @@ fn surface_tension_inputs() {
     );
     expect(&sheet, &["particles[1].centre", "outside the domain"]);
 }
+
+/// Cavities (SPEC §7.8's needle hole) empty tissue: one in a scenario without solid, or with a NaN
+/// corner, is refused naming `cavities[0]`; liquid generators may use different fractions (a primed
+/// needle beside perfused tissue), and each gives its particles the mass of its own fraction.
+#[test]
+fn cavities_need_solid_and_liquid_fractions_may_differ() {
+    expect(
+        &edit("duration: 0.1,", "cavities: [ Box(min: (0.0, 0.0, 0.0), max: (0.001, 0.001, 0.0)) ], duration: 0.1,"),
+        &["cavities[0]", "no solid"],
+    );
+    expect(
+        &edit("duration: 0.1,", "cavities: [ Box(min: (NaN, 0.0, 0.0), max: (0.001, 0.001, 0.0)) ], duration: 0.1,"),
+        &["cavities[0].min"],
+    );
+    let two = edit(
+        "fraction: 1.0) ],",
+        "fraction: 1.0), Box(phase: Liquid, min: (0.0, 0.0105, 0.0), max: (0.01, 0.0115, 0.0), fraction: 0.4) ],",
+    )
+    .replace("max: (0.01, 0.0115, 0.0))) ]", "max: (0.01, 0.0125, 0.0))) ]")
+    .replace(
+        "Box(min: (0.0, 0.01, 0.0), max: (0.01, 0.0125, 0.0))",
+        "Box(min: (0.0, 0.0115, 0.0), max: (0.01, 0.0125, 0.0))",
+    );
+    let sc = Scenario::from_str_named(&two, "two.ron").expect("two liquid fractions are valid");
+    let g = perfuse::scenario::generate(&sc);
+    let (heavy, light): (Vec<f64>, Vec<f64>) = g.liquid.mass.iter().partition(|&&m| (m - g.mass_liquid).abs() < 1e-15);
+    assert!(!heavy.is_empty() && !light.is_empty());
+    assert!((light[0] / heavy[0] - 0.4).abs() < 1e-12, "{} / {}", light[0], heavy[0]);
+}

@@ -202,16 +202,27 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
     };
     g.h_liquid = n.h_liquid.unwrap_or(n.h_over_dx * g.dx_liquid);
     g.h_solid = n.h_solid.unwrap_or(n.h_over_dx * g.dx_solid);
+    // The scenario's liquid n₀ (boundary and membrane equivalent masses, emitters) is that of its first
+    // liquid generator, the perfusing blood; a later one may differ (a syringe primed with pure blood,
+    // SPEC §7.8) and gives its own particles the mass of its own fraction.
+    let mut liquid_seen = false;
     for spec in &s.particles {
         match spec {
             Generator::Box { phase, fraction, .. } | Generator::Sphere { phase, fraction, .. } => match phase {
-                Phase::Liquid => g.fraction_liquid = *fraction,
+                Phase::Liquid if !liquid_seen => {
+                    g.fraction_liquid = *fraction;
+                    liquid_seen = true;
+                }
+                Phase::Liquid => {}
                 Phase::Solid => g.fraction_solid = *fraction,
             },
             Generator::PerfusedBlock { solid_fraction, liquid_fraction, .. }
             | Generator::PerfusedMesh { solid_fraction, liquid_fraction, .. } => {
                 g.fraction_solid = *solid_fraction;
-                g.fraction_liquid = *liquid_fraction;
+                if !liquid_seen {
+                    g.fraction_liquid = *liquid_fraction;
+                    liquid_seen = true;
+                }
             }
             Generator::Sheet { fraction, .. } => g.fraction_solid = *fraction,
         }
@@ -222,46 +233,53 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
     {
         g.fraction_liquid = e.fraction.unwrap_or(1.0);
     }
-    if let Some(l) = &s.liquid
-        && g.dx_liquid > 0.0
-    {
-        g.mass_liquid = g.fraction_liquid * l.density / lattice_poly6_sum(g.dx_liquid, 2.0 * g.h_liquid, dim);
-    }
+    // m = n₀ρ₀/S_W of a liquid lattice of fraction n₀ (D-2).
+    let (dx_l, h_l) = (g.dx_liquid, g.h_liquid);
+    let liquid_mass = |fraction: f64| match &s.liquid {
+        Some(l) if dx_l > 0.0 => fraction * l.density / lattice_poly6_sum(dx_l, 2.0 * h_l, dim),
+        _ => 0.0,
+    };
+    g.mass_liquid = liquid_mass(g.fraction_liquid);
     if let Some(m) = &s.solid
         && g.dx_solid > 0.0
     {
         g.mass_solid = g.fraction_solid * m.density / lattice_poly6_sum(g.dx_solid, 2.0 * g.h_solid, dim);
     }
 
-    let push = |phase: Phase, region: &Region, vel: &Option<InitialVelocity>, g: &mut GeneratedParticles| {
-        let (dx, mass) = match phase {
-            Phase::Liquid => (g.dx_liquid, g.mass_liquid),
-            Phase::Solid => (g.dx_solid, g.mass_solid),
+    let push =
+        |phase: Phase, region: &Region, fraction: f64, vel: &Option<InitialVelocity>, g: &mut GeneratedParticles| {
+            let (dx, mass) = match phase {
+                Phase::Liquid => (g.dx_liquid, liquid_mass(fraction)),
+                Phase::Solid => (g.dx_solid, g.mass_solid),
+            };
+            let set = match phase {
+                Phase::Liquid => &mut g.liquid,
+                Phase::Solid => &mut g.solid,
+            };
+            for p in lattice_points(region, dx, d) {
+                set.vel.push(initial_velocity(vel, p));
+                set.pos.push(p);
+                set.mass.push(mass);
+            }
         };
-        let set = match phase {
-            Phase::Liquid => &mut g.liquid,
-            Phase::Solid => &mut g.solid,
-        };
-        for p in lattice_points(region, dx, d) {
-            set.vel.push(initial_velocity(vel, p));
-            set.pos.push(p);
-            set.mass.push(mass);
-        }
-    };
     // Liquid generated inside meshes: kept beneath the capsule below.
     let mut mesh_liquid: Vec<std::ops::Range<usize>> = Vec::new();
+    // Liquid of the perfused generators (the tissue's blood): what a cavity empties.
+    let mut perfusing: Vec<std::ops::Range<usize>> = Vec::new();
     for spec in &s.particles {
         match spec {
-            Generator::Box { phase, min, max, velocity, .. } => {
-                push(*phase, &Region::Box { min: *min, max: *max }, velocity, &mut g)
+            Generator::Box { phase, min, max, fraction, velocity } => {
+                push(*phase, &Region::Box { min: *min, max: *max }, *fraction, velocity, &mut g)
             }
-            Generator::Sphere { phase, centre, radius, velocity, .. } => {
-                push(*phase, &Region::Sphere { centre: *centre, radius: *radius }, velocity, &mut g)
+            Generator::Sphere { phase, centre, radius, fraction, velocity } => {
+                push(*phase, &Region::Sphere { centre: *centre, radius: *radius }, *fraction, velocity, &mut g)
             }
-            Generator::PerfusedBlock { min, max, .. } => {
+            Generator::PerfusedBlock { min, max, solid_fraction, liquid_fraction } => {
                 let r = Region::Box { min: *min, max: *max };
-                push(Phase::Solid, &r, &None, &mut g);
-                push(Phase::Liquid, &r, &None, &mut g);
+                push(Phase::Solid, &r, *solid_fraction, &None, &mut g);
+                let start = g.liquid.pos.len();
+                push(Phase::Liquid, &r, *liquid_fraction, &None, &mut g);
+                perfusing.push(start..g.liquid.pos.len());
             }
             Generator::Sheet { centre, size, fraction } => {
                 // A sheet's particles stand for the fabric's thickness: the mass follows the in-plane
@@ -279,16 +297,16 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
                     g.solid.mass.push(mass);
                 }
             }
-            Generator::PerfusedMesh { file, placement, .. } => {
+            Generator::PerfusedMesh { file, placement, liquid_fraction, .. } => {
                 // Validation loaded this mesh already; an error here leaves the generator empty.
                 if let Ok(mesh) = super::mesh::load_mesh(&s.resolve(file)) {
                     let mesh = mesh.transformed(placement);
-                    for (phase, dx, mass) in
-                        [(Phase::Solid, g.dx_solid, g.mass_solid), (Phase::Liquid, g.dx_liquid, g.mass_liquid)]
-                    {
+                    let (ms, ml) = (g.mass_solid, liquid_mass(*liquid_fraction));
+                    for (phase, dx, mass) in [(Phase::Solid, g.dx_solid, ms), (Phase::Liquid, g.dx_liquid, ml)] {
                         let pts = super::mesh::sample_interior(&mesh, dx, mesh_lattice_offset(phase, dx));
                         if phase == Phase::Liquid {
                             mesh_liquid.push(g.liquid.pos.len()..g.liquid.pos.len() + pts.len());
+                            perfusing.push(g.liquid.pos.len()..g.liquid.pos.len() + pts.len());
                         }
                         let set = if phase == Phase::Solid { &mut g.solid } else { &mut g.liquid };
                         for p in pts {
@@ -325,6 +343,7 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
     let m_bl =
         if g.dx_liquid > 0.0 { g.mass_liquid * (g.dx_solid / g.dx_liquid).powi(d as i32) / n_share } else { 0.0 };
     g.solid_liquid_boundary_mass = membrane.iter().map(|&mem| if mem { m_bl } else { 0.0 }).collect();
+    empty_cavities(&mut g, s, &perfusing);
 
     let default_spacing = if g.dx_solid > 0.0 { g.dx_solid } else { g.dx_liquid };
     for (k, b) in s.boundaries.iter().enumerate() {
@@ -378,6 +397,35 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
     let room = if s.emitters.is_empty() { 0 } else { DEFAULT_EMITTER_ROOM };
     g.liquid_capacity = s.liquid_capacity.map_or(g.liquid.pos.len() + room, |c| c as usize);
     g
+}
+
+/// Empties the scenario's cavities (SPEC §7.8's pierced capsule) of tissue: every solid particle
+/// (capsule included) and the perfusing liquid (`perfusing`: the perfused generators' ranges); liquid
+/// the scenario places with its own generators stays (a primed needle). Runs after the capsule is
+/// built, so the hole's faces get no capsule lining (the needle pierced the capsule; it was not grown
+/// around it), and before the bond table is built, so no bond crosses the hole.
+fn empty_cavities(g: &mut GeneratedParticles, s: &Scenario, perfusing: &[std::ops::Range<usize>]) {
+    if s.cavities.is_empty() {
+        return;
+    }
+    let outside = |p: &V3| !s.cavities.iter().any(|r| r.contains(*p, s.dimensions));
+    let keep_s: Vec<bool> = g.solid.pos.iter().map(outside).collect();
+    let keep_l: Vec<bool> = (0..g.liquid.pos.len())
+        .map(|i| !perfusing.iter().any(|r| r.contains(&i)) || outside(&g.liquid.pos[i]))
+        .collect();
+    g.solid.pos = kept(&g.solid.pos, &keep_s);
+    g.solid.vel = kept(&g.solid.vel, &keep_s);
+    g.solid.mass = kept(&g.solid.mass, &keep_s);
+    g.solid_flags = kept(&g.solid_flags, &keep_s);
+    g.solid_liquid_boundary_mass = kept(&g.solid_liquid_boundary_mass, &keep_s);
+    g.liquid.pos = kept(&g.liquid.pos, &keep_l);
+    g.liquid.vel = kept(&g.liquid.vel, &keep_l);
+    g.liquid.mass = kept(&g.liquid.mass, &keep_l);
+}
+
+/// The entries of `v` whose `keep` flag is set.
+fn kept<T: Copy>(v: &[T], keep: &[bool]) -> Vec<T> {
+    v.iter().zip(keep).filter(|(_, k)| **k).map(|(x, _)| *x).collect()
 }
 
 /// Lattice offset of a perfused mesh's phases: the solid lattice is cell-centred (offset Δx/2), the
@@ -448,9 +496,6 @@ fn keep_liquid_beneath_capsule(g: &mut GeneratedParticles, ranges: &[std::ops::R
     };
     let in_mesh = |i: usize| ranges.iter().any(|r| r.contains(&i));
     let keep: Vec<bool> = (0..g.liquid.pos.len()).map(|i| !in_mesh(i) || beneath(&g.liquid.pos[i])).collect();
-    fn kept<T: Copy>(v: &[T], keep: &[bool]) -> Vec<T> {
-        v.iter().zip(keep).filter(|(_, k)| **k).map(|(x, _)| *x).collect()
-    }
     g.liquid.pos = kept(&g.liquid.pos, &keep);
     g.liquid.vel = kept(&g.liquid.vel, &keep);
     g.liquid.mass = kept(&g.liquid.mass, &keep);

@@ -45,6 +45,12 @@ pub struct Scenario {
     /// Glisson's capsule: surface detection and resolution enhancement of the solid (SPEC §4.5).
     #[serde(default)]
     pub membrane: Option<Membrane>,
+    /// Regions emptied of tissue at set-up — solid, capsule and the perfused generators' blood — after
+    /// the capsule is built and before the bond table is: where a needle was pushed into the specimen
+    /// (SPEC §7.8). The capsule keeps no lining along the hole and no bond crosses it; boundary objects
+    /// and plain liquid generators (`Box`, `Sphere`) fill it again (the needle's wall, a primed bore).
+    #[serde(default)]
+    pub cavities: Vec<Region>,
     /// Simulated time [s] of a run (after relaxation).
     pub duration: f64,
     /// Optional damped relaxation before t = 0 (SPEC §7.5).

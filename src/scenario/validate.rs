@@ -428,7 +428,10 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
                 "enlarge the region or refine Δx",
             ));
         }
-        for (phase, fr) in phase_fracs {
+        // The solid has one particle mass; liquid generators may differ (a needle primed with pure
+        // blood beside the tissue's perfusing blood, SPEC §7.8): each gives its particles the mass of
+        // its own fraction, and the first sets the scenario's n₀ (boundary masses, emitters).
+        for (phase, fr) in phase_fracs.into_iter().filter(|(phase, _)| *phase == Phase::Solid) {
             let slot = &mut fractions[phase as usize];
             match slot {
                 Some(prev) if (*prev - fr).abs() > 1e-12 => {
@@ -528,6 +531,16 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             return Err(Check::fail(
                 format!("fixed_regions[{i}]"),
                 "fixed regions hold solid particles, but there is no solid",
+                "remove it or add solid particles",
+            ));
+        }
+    }
+    for (i, r) in s.cavities.iter().enumerate() {
+        check_region(&format!("cavities[{i}]"), r)?;
+        if s.solid.is_none() {
+            return Err(Check::fail(
+                format!("cavities[{i}]"),
+                "a cavity removes solid particles, but there is no solid",
                 "remove it or add solid particles",
             ));
         }
