@@ -1,7 +1,7 @@
 //! Analysis of simulations: analytic references (`analytic`), the validation cases of SPEC.md §7 with
 //! their report and plots (`validate`), PNG charts (`plot`), and the wetting measurements of the
 //! surface-tension cases (`wetting`) with their validation case (`wicking`), the liver cut by the
-//! scalpel (`scalpel`), and DMD (`dmd`) with its validation cases on the oscillating wall and the broken
+//! scalpel (`scalpel`), the syringe (`syringe`), and DMD (`dmd`) with its validation cases on the oscillating wall and the broken
 //! dam (`dmd_cases`).
 
 pub mod analytic;
@@ -13,6 +13,7 @@ pub mod plot;
 pub mod projectile;
 pub mod scalpel;
 pub mod session;
+pub mod syringe;
 pub mod validate;
 pub mod wetting;
 pub mod wicking;

@@ -26,15 +26,15 @@ pub const CASES: [&str; 5] = ["poiseuille", "brinkman", "convergence", "hydrosta
 
 /// Cases run only when named with `--case` (each is tens of minutes on a CPU): the wicking set of SPEC
 /// §7.12 (W1–W3), the liver cut by the scalpel (SPEC §9.3: L1 and L2, or one of them alone) and the
-/// projectile (SPEC §7.10) and the DMD of the oscillating wall and the broken dam (SPEC §7.13–7.14).
-pub const EXTRA_CASES: [&str; 6] =
-    ["wicking", "liver_scalpel", "liver_scalpel_L1", "liver_scalpel_L2", "projectile", "dmd"];
+/// projectile (SPEC §7.10), the syringe (SPEC §7.8) and the DMD of the oscillating wall and the broken dam (SPEC §7.13–7.14).
+pub const EXTRA_CASES: [&str; 7] =
+    ["wicking", "liver_scalpel", "liver_scalpel_L1", "liver_scalpel_L2", "projectile", "syringe", "dmd"];
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ValidationError {
     #[error(
-        "unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever, wicking, liver_scalpel, liver_scalpel_L1, liver_scalpel_L2, projectile, dmd"
+        "unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever, wicking, liver_scalpel, liver_scalpel_L1, liver_scalpel_L2, projectile, syringe, dmd"
     )]
     UnknownCase(String),
     #[error(transparent)]
@@ -156,6 +156,7 @@ pub fn run_validation(
                 super::scalpel::validate(variants, ctx.quick, ctx.backend, ctx.out, ctx.progress)?
             }
             "projectile" => super::projectile::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
+            "syringe" => super::syringe::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
             "dmd" => super::dmd_cases::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
             _ => cantilever(&ctx)?,
         };
