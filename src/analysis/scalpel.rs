@@ -192,6 +192,18 @@ pub fn run(
                 }
                 let y = centroid(&s, m).y - plate_y;
                 out.free_height.push((t, y));
+                let v = m.iter().fold(glam::DVec3::ZERO, |a, &i| a + s.solid.vel[i].as_dvec3()) / m.len() as f64;
+                let low = m.iter().map(|&i| s.solid.pos[i].y as f64 - plate_y).fold(f64::INFINITY, f64::min);
+                log::info!(
+                    "{}: t = {t:.2} s, free piece centroid {:.1} mm and lowest particle {:.1} mm above the plate, \
+                     mean velocity ({:.3}, {:.3}, {:.3}) m/s",
+                    sc.name,
+                    y * 1e3,
+                    low * 1e3,
+                    v.x,
+                    v.y,
+                    v.z
+                );
                 if t <= out.separation.unwrap_or(0.0) + 1.0 + 1e-9 {
                     lowest = lowest.min(y);
                 }
