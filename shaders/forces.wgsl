@@ -190,7 +190,9 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let vj = liquid_vel[j].xyz;
                 let grad = xij * grad_spiky_factor(kl, r);
                 let pj = dj.w / (dj.x * dj.x);
-                a += grad * (-n_l * mj * (pi + pj) * params.kappa_s);
+                // −n∇p with the pair's mean fraction: an antisymmetric pair force, so the phase's pressure
+                // forces sum to zero (D-16 with n_i alone propels a body with an asymmetric surface)
+                a += grad * (-0.5 * (n_l + dj.y) * mj * (pi + pj) * params.kappa_s);
                 a += (vj - vi) * (params.kappa_v * params.eta / rho * (mj / dj.x) * lap_viscosity(kl, r));
                 if (params.cohesion_ll > 0.0 && r > 0.0) {
                     // surface tension (3.3): pair force toward j
@@ -319,7 +321,8 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let dj = solid_dens[j];
                 let grad = xij * grad_cubic_factor(ks, r);
                 let pj = dj.w / (dj.x * dj.x);
-                var acc = grad * (-n_s * (pi + pj));
+                // −n∇p with the pair's mean fraction (antisymmetric: see forces_liquid)
+                var acc = grad * (-0.5 * (n_s + dj.z) * (pi + pj));
                 if (params.as_eps > 0.0) {
                     let f = w_cubic(ks, r) / params.wc_dx;
                     acc += m3_mul_v(m3_add(art_i, m3_load(solid_tau_art[j].art)), grad) * powi(f, params.as_exp);

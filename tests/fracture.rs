@@ -129,18 +129,34 @@ fn blade_cut_severs_the_hanging_slab_and_the_free_piece_falls() {
     }
     eprintln!("{across} of {broken} broken bond ends straddled the blade's plane");
     assert!(across as f64 >= 0.8 * broken as f64, "the blade cut most bonds ({across} of {broken})");
-    sim.advance_until(0.16, 1_000_000, |_| {}).expect("run");
-    let s_end = sim.read_state().expect("state");
-    let (y_free0, y_free) = (centroid_y(&s0, &free), centroid_y(&s_end, &free));
-    let (y_att0, y_att) = (centroid_y(&s0, &attached), centroid_y(&s_end, &attached));
+    // SPEC §9.3 (3): the lowest the free piece's centroid gets (every 0.02 s to 0.16 s, as `perfuse
+    // validate --case liver_scalpel` samples it) is at least half-way down to the plate. The blade
+    // drives it down until it stops at 0.048 s; it lands and rebounds (the stiff slab is not damped).
     let plate_top = p.to_sim([0.0, -0.046, 0.0]).y;
+    let y_free0 = centroid_y(&s0, &free);
+    let mut lowest = (sim.time(), centroid_y(&s, &free));
+    let mut s_end = s;
+    while sim.time() < 0.16 - 1e-9 {
+        let t = sim.time() + 0.02;
+        sim.advance_until(t, 1_000_000, |_| {}).expect("run");
+        s_end = sim.read_state().expect("state");
+        let y = centroid_y(&s_end, &free);
+        if y < lowest.1 {
+            lowest = (sim.time(), y);
+        }
+    }
+    let y_free = centroid_y(&s_end, &free);
+    let (y_att0, y_att) = (centroid_y(&s0, &attached), centroid_y(&s_end, &attached));
     eprintln!(
-        "at 0.16 s: free piece centroid {:.1} → {:.1} mm above the plate, attached one moved {:.2} mm",
+        "free piece centroid {:.1} mm above the plate at t = 0, lowest {:.1} mm at {:.2} s, {:.1} mm at 0.16 s; \
+         attached one moved {:.2} mm",
         (y_free0 - plate_top) * 1e3,
+        (lowest.1 - plate_top) * 1e3,
+        lowest.0,
         (y_free - plate_top) * 1e3,
         (y_att - y_att0).abs() * 1e3
     );
-    assert!(y_free0 - y_free > 0.5 * (y_free0 - plate_top), "the free piece falls at least half-way to the plate");
+    assert!(y_free0 - lowest.1 > 0.5 * (y_free0 - plate_top), "the free piece falls at least half-way to the plate");
     assert!((y_att - y_att0).abs() < 0.005, "the attached piece stays");
     // L1: the thesis's distance criterion alone.
     let mut l1 = Simulation::new(&hanging_cut(false), BackendKind::Cpu).expect("sim");

@@ -263,7 +263,9 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
                 }
                 let grad = xij * kl.grad_spiky_factor(r);
                 let pj = l.p[j] / (l.rho[j] * l.rho[j]);
-                a += grad * (-n_l * l.m[j] * (pi + pj) * p.kappa_s);
+                // −n∇p with the pair's mean fraction: an antisymmetric pair force, so the phase's
+                // pressure forces sum to zero (D-16's n_i alone propels a body with an asymmetric surface)
+                a += grad * (-0.5 * (n_l + l.n_l[j]) * l.m[j] * (pi + pj) * p.kappa_s);
                 a += (l.v[j] - vi) * (p.kappa_v * p.eta / rho * (l.m[j] / l.rho[j]) * kl.lap_viscosity(r));
                 if p.av_liquid {
                     let pij = artificial_viscosity(
@@ -363,7 +365,8 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                 }
                 let grad = xij * ks.grad_cubic_factor(r);
                 let pj = s.p[j] / (s.rho[j] * s.rho[j]);
-                let mut acc = grad * (-n_s * (pi + pj));
+                // −n∇p with the pair's mean fraction (antisymmetric: see forces_liquid)
+                let mut acc = grad * (-0.5 * (n_s + s.n_s[j]) * (pi + pj));
                 if p.as_eps > 0.0 {
                     let f = ks.w_cubic(r) / p.wc_dx;
                     acc += (s.art[i] + s.art[j]) * grad * f.powi(p.as_exp);
