@@ -79,6 +79,14 @@ impl Geometry {
         }
     }
 
+    /// At the needle: within `reach` of its outside, from `reach` below its tip up (the bore's mouth,
+    /// and the capsule's hole around the shaft), where blood outside the tissue has not leaked
+    /// "elsewhere" (SPEC §7.8 (3)).
+    pub fn at_needle(&self, p: [f64; 3], reach: f64) -> bool {
+        let h = self.needle_out + reach;
+        p[0].abs() <= h && p[1].abs() <= h && p[2] >= self.z_tip - reach
+    }
+
     /// The needle tip: the centre of the bore's lower end.
     pub fn tip(&self) -> [f64; 3] {
         [0.0, 0.0, self.z_tip]
@@ -245,7 +253,8 @@ pub struct SyringeOutcome {
     /// Solid particles within 3Δx_s of the tip at t = 0, and their mean displacement toward it [m].
     pub near_tip: usize,
     pub toward_tip: f64,
-    /// Largest liquid fraction outside the tissue and outside the syringe over the run.
+    /// Largest liquid fraction outside the tissue, outside the syringe and away from the needle (more
+    /// than R from it) over the run.
     pub leaked_max: f64,
     pub invariants_failed: usize,
 }
@@ -281,6 +290,8 @@ pub fn run(
     let s0 = sim.read_state()?;
     let outside0 = outside_syringe(g, &p, &s0);
     let tip = glam::DVec3::from(g.tip());
+    // the kernel support R = 2h of the solid: blood this close to the needle is at its mouth or shaft
+    let reach = 2.0 * f64::from(p.k_solid.h);
     let near: Vec<usize> = (0..s0.solid.len())
         .filter(|&i| (glam::DVec3::from(world(s0.solid.pos[i])) - tip).length() <= 3.0 * g.dx_s)
         .collect();
@@ -305,7 +316,10 @@ pub fn run(
         let drawn = outside0 - outside_syringe(g, &p, &s);
         out.drawn.push((t, drawn));
         let leaked = (0..s.liquid.len())
-            .filter(|&i| s.liquid.n_s[i] < crate::sim::state::LIQUID_OUTSIDE_NS && !g.inside(world(s.liquid.pos[i])))
+            .filter(|&i| {
+                let x = world(s.liquid.pos[i]);
+                s.liquid.n_s[i] < crate::sim::state::LIQUID_OUTSIDE_NS && !g.inside(x) && !g.at_needle(x, reach)
+            })
             .map(|i| v_p(&s, i))
             .sum::<f64>();
         out.leaked_max = out.leaked_max.max(leaked / out.liquid_volume.max(f64::MIN_POSITIVE));
