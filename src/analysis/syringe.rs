@@ -259,14 +259,19 @@ pub struct SyringeOutcome {
     pub invariants_failed: usize,
 }
 
-/// Volume (Σ m/ρ₀) of the liquid outside the syringe: the specimen's blood, and any that left it
-/// elsewhere. What it loses was drawn (the primed blood, whose particles carry more mass, starts inside
-/// and is sunk from inside, so it never counts).
-fn outside_syringe(g: &Geometry, p: &crate::sim::params::Params, s: &State) -> f64 {
+/// Volume Σ m/ρ₀ of the liquid particles for which `keep` holds (given their scenario position).
+fn liquid_volume(p: &crate::sim::params::Params, s: &State, keep: impl Fn(usize, [f64; 3]) -> bool) -> f64 {
     (0..s.liquid.len())
-        .filter(|&i| !g.inside(p.to_world(s.liquid.pos[i])))
+        .filter(|&i| keep(i, p.to_world(s.liquid.pos[i])))
         .map(|i| f64::from(s.liquid.mass[i]) / f64::from(p.rho0_l))
         .sum()
+}
+
+/// Volume of the liquid outside the syringe: the specimen's blood, and any that left it elsewhere.
+/// What it loses was drawn (the primed blood, whose particles carry more mass, starts inside and is
+/// sunk from inside, so it never counts).
+fn outside_syringe(g: &Geometry, p: &crate::sim::params::Params, s: &State) -> f64 {
+    liquid_volume(p, s, |_, x| !g.inside(x))
 }
 
 /// Runs `sc` (a [`scenario_ron`] scenario for the lattice of `g`): relaxation, then the drawing, sampled
@@ -286,7 +291,6 @@ pub fn run(
     }
     let p = sim.params().clone();
     let world = |x: glam::Vec3| p.to_world(x);
-    let v_p = |s: &State, i: usize| f64::from(s.liquid.mass[i]) / f64::from(p.rho0_l);
     let s0 = sim.read_state()?;
     let outside0 = outside_syringe(g, &p, &s0);
     let tip = glam::DVec3::from(g.tip());
@@ -315,13 +319,9 @@ pub fn run(
         inv.check(&sim, &s);
         let drawn = outside0 - outside_syringe(g, &p, &s);
         out.drawn.push((t, drawn));
-        let leaked = (0..s.liquid.len())
-            .filter(|&i| {
-                let x = world(s.liquid.pos[i]);
-                s.liquid.n_s[i] < crate::sim::state::LIQUID_OUTSIDE_NS && !g.inside(x) && !g.at_needle(x, reach)
-            })
-            .map(|i| v_p(&s, i))
-            .sum::<f64>();
+        let leaked = liquid_volume(&p, &s, |i, x| {
+            s.liquid.n_s[i] < crate::sim::state::LIQUID_OUTSIDE_NS && !g.inside(x) && !g.at_needle(x, reach)
+        });
         out.leaked_max = out.leaked_max.max(leaked / out.liquid_volume.max(f64::MIN_POSITIVE));
         log::info!("{}: t = {t:.3} s, drawn {drawn:.3e} m³, leaked {leaked:.2e} m³", sc.name);
         k += 1;

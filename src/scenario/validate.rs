@@ -330,7 +330,7 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
 
     // Generators, boundaries and regions.
     let mut total = 0usize;
-    let mut fractions: [Option<f64>; 2] = [None, None];
+    let mut solid_fraction: Option<f64> = None;
     for (i, g) in s.particles.iter().enumerate() {
         let f = format!("particles[{i}]");
         let (count, phase_fracs): (usize, Vec<(Phase, f64)>) = match g {
@@ -431,19 +431,18 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
         // The solid has one particle mass; liquid generators may differ (a needle primed with pure
         // blood beside the tissue's perfusing blood, SPEC §7.8): each gives its particles the mass of
         // its own fraction, and the first sets the scenario's n₀ (boundary masses, emitters).
-        for (phase, fr) in phase_fracs.into_iter().filter(|(phase, _)| *phase == Phase::Solid) {
-            let slot = &mut fractions[phase as usize];
-            match slot {
-                Some(prev) if (*prev - fr).abs() > 1e-12 => {
+        for (_, fr) in phase_fracs.into_iter().filter(|(phase, _)| *phase == Phase::Solid) {
+            match solid_fraction {
+                Some(prev) if (prev - fr).abs() > 1e-12 => {
                     return Err(Check::fail(
                         format!("{f}.fraction"),
                         format!(
-                            "{phase:?} particles use fraction {fr} here and {prev} elsewhere: each phase has one particle mass"
+                            "Solid particles use fraction {fr} here and {prev} elsewhere: each phase has one particle mass"
                         ),
                         "use one initial fraction per phase",
                     ));
                 }
-                _ => *slot = Some(fr),
+                _ => solid_fraction = Some(fr),
             }
         }
         total += count;
