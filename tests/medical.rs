@@ -113,20 +113,25 @@ fn oozing_drains_onto_the_plate_and_the_top_dries() {
 }
 
 /// Indentation of the membrane-enclosed specimen (thesis §4.2.2, SPEC §7.7, issue 6 §1): the indenter
-/// presses 30 % of the specimen's height and withdraws; no liquid particle crosses the capsule and the
+/// presses 30 % of the specimen's height and withdraws; no liquid particle crosses the capsule, the
 /// specimen bulges laterally (at least half the bulge that volume preservation gives for the displaced
-/// spherical cap spread over the four side faces).
+/// spherical cap spread over the four side faces) and a residual dent remains after the indenter has
+/// left (the thesis's hysteresis).
 ///
-/// Reduced: 8³ solid + 7³ liquid (membrane: 4 × 304 surface particles), no gravity (the unloaded cube is
-/// then its own equilibrium), stiffnesses ÷ 10 as in the oozing test, the stroke 0.2 s instead of 4 s
-/// (0.28 m/s peak, Mach < 0.1), the indenter starting Δx_s/2 above the top face; K̄ as the thesis.
+/// Reduced: 10³ solid + 9³ liquid (+ capsule), no gravity (the unloaded cube is then its own
+/// equilibrium), stiffnesses ÷ 10 as in the oozing test, the stroke 0.2 s instead of 4 s (0.28 m/s
+/// peak, Mach < 0.1), the indenter starting Δx_s/2 above the top face; K̄ as the thesis.
 ///
-/// Not asserted (open, issue 6): the residual dent. At this time scale the top rebounds and rings
-/// about 2 mm *above* its start after the indenter has left (measured −2.3 mm "residual"), so the
-/// thesis's hysteresis is not reproduced by this reduced run; it is printed for the record.
+/// The dent is measured on the body itself — the initial top-face particles within Δx_s of the axis
+/// against those of the top face's rim (|x| or |y| > 0.3L_c), each against its start — because the
+/// specimen, pressed into the plate without gravity to hold it, springs off the plate after the stroke
+/// and rises at ≈ 2 cm/s. What keeps it is the connectivity damage (Alg. 2): the bonds broken under
+/// the indenter do not re-form, so the crushed tissue does not spring back. At 8³ (indenter radius
+/// 1.6Δx_s, 2h = 16 mm) the top-centre particles slide aside instead and no dent stays (−0.03 mm); at
+/// 10³ it is 2.7 mm, at 12³ 4.4 mm.
 #[test]
-fn indentation_bulges_and_does_not_leak() {
-    let n = 8;
+fn indentation_bulges_leaves_a_dent_and_does_not_leak() {
+    let n = 10;
     let dx_s = L_C / n as f64;
     let r_ind = 0.2 * L_C;
     let amp = 0.3 * L_C + 0.5 * dx_s;
@@ -155,6 +160,20 @@ fn indentation_bulges_and_does_not_leak() {
     let top = |s: &State| s.solid.pos.iter().filter(|p| p.x.hypot(p.y) < dx).map(|p| p.z).fold(f32::MIN, f32::max);
     let lateral = |s: &State| s.solid.pos.iter().map(|p| p.x.abs()).fold(0.0f32, f32::max);
     let (z0, x0) = (top(&s0), lateral(&s0));
+    // the residual dent: initial top-face particles at the centre against those at the rim
+    let top_face = |near_axis: bool| -> Vec<usize> {
+        (0..s0.solid.len())
+            .filter(|&i| {
+                let p = s0.solid.pos[i];
+                p.z > z0 - 0.5 * dx
+                    && if near_axis { p.x.hypot(p.y) < dx } else { p.x.abs().max(p.y.abs()) > 0.3 * L_C as f32 }
+            })
+            .collect()
+    };
+    let (centre, rim) = (top_face(true), top_face(false));
+    let mean_z = |s: &State, set: &[usize]| mean(set.iter().map(|&i| s.solid.pos[i].z));
+    let dent = |s: &State| (mean_z(s, &rim) - mean_z(&s0, &rim)) - (mean_z(s, &centre) - mean_z(&s0, &centre));
+    assert!(!centre.is_empty() && !rim.is_empty(), "top face found");
     let mut leaked = 0;
     let mut deepest = (0.0f32, 0.0f32);
     let mut residual = 0.0f32;
@@ -165,13 +184,13 @@ fn indentation_bulges_and_does_not_leak() {
         if k == 4 {
             deepest = (z0 - top(&s), lateral(&s) - x0);
         }
-        residual = z0 - top(&s);
+        residual = dent(&s);
     }
     let (d, r) = (deepest.0 as f64, r_ind);
     let bulge_volume = std::f64::consts::PI * d * d * (3.0 * r - d) / 3.0 / (4.0 * L_C * L_C);
     eprintln!(
-        "indentation: depth at T/4 {:.2} mm, bulge {:.2} mm (volume preservation: {:.2} mm), top at 5T/8 {:.2} mm \
-         below its start, leaked {leaked}",
+        "indentation: depth at T/4 {:.2} mm, bulge {:.2} mm (volume preservation: {:.2} mm), residual dent at 5T/8 \
+         {:.2} mm (top centre below the rim, against the start), leaked {leaked}",
         deepest.0 * 1e3,
         deepest.1 * 1e3,
         bulge_volume * 1e3,
@@ -180,6 +199,7 @@ fn indentation_bulges_and_does_not_leak() {
     assert_eq!(leaked, 0, "liquid particles outside the capsule");
     assert!(deepest.0 > 0.2 * L_C as f32, "the indenter pressed {} m", deepest.0);
     assert!(deepest.1 as f64 >= 0.5 * bulge_volume, "lateral bulge {} m", deepest.1);
+    assert!(residual > 0.5e-3, "residual dent {residual} m after the indenter has left");
 }
 
 /// Scalpel and the liver (thesis §4.2.6, SPEC §9.2): `liver_scalpel.ron` at the CI preset (Δx_s = 8 mm)
