@@ -225,7 +225,7 @@ enum Cmd {
         /// liver_scalpel, projectile, syringe and dmd run only when named: the three fabric cases of SPEC §7.12,
         /// ≈ 45 min with --quick on a CPU; the liver cut twice, SPEC §9.3 L1/L2, ≈ 2.5 h —
         /// liver_scalpel_L1 or liver_scalpel_L2 runs one of the two; the projectile of SPEC §7.10
-        /// for 1 s; the syringe of SPEC §7.8 for 2 s; dmd: the oscillating wall and the broken dam with DMD, SPEC §7.13–7.14).
+        /// for 1 s (--quick: relaxed, then 0.2 s at 12³, ≈ 50 min on a CPU); the syringe of SPEC §7.8 for 2 s; dmd: the oscillating wall and the broken dam with DMD, SPEC §7.13–7.14).
         #[arg(long)]
         case: Option<String>,
         /// Reduced resolutions (what the test suite runs).

@@ -6,9 +6,13 @@
 //! open (solid within 0.5R_p of the axis ≤ 20 % of its initial count); (3) the liquid outside the
 //! tissue grows after exit and at the end is ≥ 20 % of the emitted volume; (4) the emitter balance.
 //!
-//! `--quick` re-grids the file to SPEC §7.5's CI lattice (12³ solid, 11³ liquid) and skips the
-//! relaxation; the standard run is the file (32³/30³, relaxed): a GPU run. Frames (before entry, just
-//! after exit, the end) are rendered where an adapter is.
+//! `--quick` is SPEC §7.5's CI variant: the file re-gridded to 12³ solid / 11³ liquid, relaxed as the
+//! file says (0.3 s, ζ = 20 s⁻¹), then 0.2 s of simulated time, so acceptance (3)'s "at 1 s" is read at
+//! the end of that run. The relaxation is not skipped: an unrelaxed specimen sags under gravity from
+//! t = 0, and the thesis criterion breaks its near-2h bonds all over the cube (at 12³ without
+//! relaxation 32 % of the bonds broken by 0.15 s lay beyond R_p + 2h of the path). The standard run
+//! is the file (32³/30³, 1 s): a GPU run. Frames (before entry, just after exit, the end) are
+//! rendered where an adapter is.
 
 use super::frames::simulation_with_frames;
 use super::validate::{CaseResult, Invariants, ValidationError, advance_to, at_least, at_most};
@@ -21,13 +25,14 @@ use std::time::Instant;
 pub const PROJECTILE: &str = include_str!("../../assets/scenarios/projectile.ron");
 /// Cube side L_c [m]; the path runs along +x through (·, 0, L_c/2).
 const L_C: f64 = 0.05;
+/// Simulated time of SPEC §7.5's CI variants [s] (after the relaxation).
+pub const QUICK_DURATION: f64 = 0.2;
 
 /// `--set` overrides that re-grid `projectile.ron` to ns³ solid and nl³ liquid (one h = 1.3Δx_s, the
-/// plate 3 layers at Δx_s, the projectile at Δx_s/2, the source of radius 2Δx_l), without relaxation.
+/// plate 3 layers at Δx_s, the projectile at Δx_s/2, the source of radius 2Δx_l).
 pub fn lattice_overrides(ns: usize, nl: usize) -> Vec<String> {
     let (dx_s, dx_l) = (L_C / ns as f64, L_C / nl as f64);
     vec![
-        "relaxation=null".into(),
         format!("numerics.dx_solid={dx_s}"),
         format!("numerics.dx_liquid={dx_l}"),
         format!("numerics.h_liquid={}", 1.3 * dx_s),
@@ -42,6 +47,11 @@ pub fn lattice_overrides(ns: usize, nl: usize) -> Vec<String> {
 #[derive(Clone, Debug, Default)]
 pub struct ProjectileOutcome {
     pub resolution: String,
+    /// After the relaxation: the largest solid speed [m/s], the top face's mean sag [m] and the bonds
+    /// broken while relaxing (not counted below: the counts start after the relaxation).
+    pub relaxed_vmax: f64,
+    pub relaxed_sag: f64,
+    pub relaxed_broken: u64,
     /// Broken bonds (pairs) and those whose midpoint, when they broke, lay within R_p + 2h of the axis.
     pub broken: usize,
     pub broken_near_path: usize,
@@ -97,6 +107,7 @@ pub fn run(
     // The trailing edge leaves the exit face x = L_c/2.
     let t_exit = (0.5 * L_C + r_p - centre[0]) / speed;
     let (mut sim, mut frames) = simulation_with_frames(sc, backend, frames)?;
+    let unrelaxed = sim.read_state()?;
     sim.relax(|_| {})?;
     if let Some(f) = &mut frames {
         f.shoot(&sim, "before");
@@ -105,6 +116,14 @@ pub fn run(
     let world = |x: glam::Vec3| p.to_world(x);
     let reach = r_p + 2.0 * f64::from(p.k_solid.h);
     let s0 = sim.read_state()?;
+    // the source runs while the specimen relaxes (at t < 0); SPEC counts from t = 0
+    let relaxed_totals = sim.emit_totals()?;
+    // SPEC §7.5's relaxation invariants: the top face's mean sag and the largest solid speed
+    let z_top = unrelaxed.solid.pos.iter().map(|x| x.z).fold(f32::MIN, f32::max);
+    let top_face: Vec<usize> =
+        (0..unrelaxed.solid.len()).filter(|&i| unrelaxed.solid.pos[i].z > z_top - 0.5 * p.dx_solid).collect();
+    let sag = top_face.iter().map(|&i| f64::from(unrelaxed.solid.pos[i].z - s0.solid.pos[i].z)).sum::<f64>()
+        / top_face.len().max(1) as f64;
     let n_l0 = s0.liquid.len();
     let mut out = ProjectileOutcome {
         resolution: format!(
@@ -114,6 +133,9 @@ pub fn run(
             p.dx_solid * 1e3,
             r_p * 1e3
         ),
+        relaxed_vmax: s0.solid.vel.iter().map(|v| f64::from(v.length())).fold(0.0, f64::max),
+        relaxed_sag: sag,
+        relaxed_broken: s0.broken_bonds(),
         tunnel_initial: (0..s0.solid.len())
             .filter(|&i| {
                 let w = world(s0.solid.pos[i]);
@@ -194,10 +216,19 @@ pub fn run(
     }
     let totals = sim.emit_totals()?;
     out.outside_end = outside_volume(&prev);
-    out.emitted = totals.emitted_volume_m3;
-    out.balance = n_l0 as i64 + totals.emitted as i64 - totals.sunk as i64 - prev.liquid.len() as i64;
+    out.emitted = totals.emitted_volume_m3 - relaxed_totals.emitted_volume_m3;
+    let emitted = totals.emitted as i64 - relaxed_totals.emitted as i64;
+    let sunk = totals.sunk as i64 - relaxed_totals.sunk as i64;
+    out.balance = n_l0 as i64 + emitted - sunk - prev.liquid.len() as i64;
     out.invariants_failed = inv.count();
     out.first_violation = inv.first();
+    log::info!(
+        "{}: relaxed to max |v| {:.2e} m/s, top sag {:.2} mm, {} bonds broken while relaxing",
+        sc.name,
+        out.relaxed_vmax,
+        out.relaxed_sag * 1e3,
+        out.relaxed_broken
+    );
     log::info!(
         "{}: {} bonds broke, {} near the path; {} of {} straddling cut at exit; tunnel {} → {}; \
          outside {:.3e} → {:.3e} m³ of {:.3e} emitted; balance {}",
@@ -225,6 +256,8 @@ pub fn rows(o: &ProjectileOutcome, wall: f64) -> Vec<CaseResult> {
     let (n, r) = ("projectile", o.resolution.as_str());
     let frac = |a: usize, b: usize| if b == 0 { f64::NAN } else { a as f64 / b as f64 };
     vec![
+        at_most(n, r, "relaxed_max_solid_speed_m_per_s", o.relaxed_vmax, 1e-3, wall),
+        at_most(n, r, "relaxed_top_face_sag_over_side", o.relaxed_sag / L_C, 0.02, wall),
         at_least(n, r, "broken_bonds_near_path_fraction", frac(o.broken_near_path, o.broken), 0.9, wall),
         at_least(n, r, "straddling_bonds_cut_fraction", frac(o.straddling_cut, o.straddling), 0.95, wall),
         at_most(
@@ -249,7 +282,7 @@ pub fn rows(o: &ProjectileOutcome, wall: f64) -> Vec<CaseResult> {
     ]
 }
 
-/// SPEC §7.10 on `projectile.ron` (quick: 12³/11³, no relaxation).
+/// SPEC §7.10 on `projectile.ron` (quick: 12³/11³, relaxed, 0.2 s: SPEC §7.5's CI variant).
 pub fn validate(
     quick: bool,
     backend: BackendKind,
@@ -257,7 +290,13 @@ pub fn validate(
     _progress: bool,
 ) -> Result<Vec<CaseResult>, ValidationError> {
     let started = Instant::now();
-    let ov = if quick { lattice_overrides(12, 11) } else { Vec::new() };
+    let ov = if quick {
+        let mut ov = lattice_overrides(12, 11);
+        ov.push(format!("duration={QUICK_DURATION}"));
+        ov
+    } else {
+        Vec::new()
+    };
     let sc = Scenario::from_str_with_overrides(PROJECTILE, "assets/scenarios/projectile.ron", &ov)?;
     let o = run(&sc, backend, Some((out, "projectile")))?;
     Ok(rows(&o, started.elapsed().as_secs_f64()))
@@ -280,6 +319,8 @@ mod tests {
         assert!(ov.contains(&format!("numerics.h_liquid={}", 1.3 * L_C / 12.0)));
         assert!(ov.contains(&format!("emitters.0.region.radius={}", 2.0 * L_C / 11.0)));
         let sc = Scenario::from_str_with_overrides(PROJECTILE, "assets/scenarios/projectile.ron", &ov).expect("valid");
-        assert!(sc.relaxation.is_none());
+        // SPEC §7.5's CI variant keeps the file's relaxation (0.3 s, ζ = 20 s⁻¹)
+        let r = sc.relaxation.expect("the CI variant relaxes");
+        assert_eq!((r.duration, r.damping), (0.3, 20.0));
     }
 }
