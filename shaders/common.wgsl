@@ -614,6 +614,13 @@ fn lap_viscosity(k: KernelConsts, r: f32) -> f32 {
 }
 
 // ---- grid (twin: src/sim/cpu/grid.rs) ----
+// Cell-ordered dispatch: the neighbour passes (density_*, forces_*) give invocation k the k-th
+// particle of its set in the grid's canonical list (`liquid_order[k].id`, …), not particle k. The
+// lanes of a workgroup then sit in neighbouring cells, so they walk nearly the same cell rows and
+// read the same candidates (fewer divergent iterations, cache hits). Each particle's sums keep their
+// neighbours and their order, so the results do not depend on which invocation computes them (the
+// CPU twin iterates in id order). The lists are current whenever a neighbour pass runs: the grids
+// are rebuilt after every advance and every host-side state change (passes.rs PLACE_AND_BIN).
 // Integer cell coordinates of x, clamped into the grid (grid_cell_coords).
 fn cell_coords(x: vec3<f32>) -> vec3<i32> {
     // Per component, no vector-index loop (dynamic indexing of a vector is slow on several drivers).
@@ -651,7 +658,18 @@ fn nbr_cell(c: vec3<i32>, k: u32) -> i32 {
     if (any(outside & !periodic)) {
         return -1;
     }
-    return i32(cell_index(select(nc, ((nc % n) + n) % n, outside)));
+    return i32(cell_index(select(nc, wrap_cells(nc, n), outside)));
+}
+
+// nc mod n (Euclidean) for nc in [−GRID_REACH, n − 1 + GRID_REACH], n ≥ 1: the CPU's rem_euclid, by
+// two rounds of one conditional add or subtract. No integer division: a vector `%` by a runtime n is
+// scalarised into one division per lane and component by lavapipe and many GPUs, and this runs once
+// per neighbour row.
+fn wrap_cells(nc: vec3<i32>, n: vec3<i32>) -> vec3<i32> {
+    var w = select(nc, nc + n, nc < vec3<i32>(0));
+    w = select(w, w - n, w >= n);
+    w = select(w, w + n, w < vec3<i32>(0));
+    return select(w, w - n, w >= n);
 }
 
 // Whether the rows of c's neighbour block wrap around a periodic x axis.

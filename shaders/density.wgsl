@@ -11,10 +11,10 @@
 
 @compute @workgroup_size(64)
 fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if (i >= params.counts.x) {
+    if (gid.x >= params.counts.x) {
         return;
     }
+    let i = liquid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
     let kl = params.k_liquid;
     let kx = params.k_cross;
     let xi = liquid_pos[i].xyz;
@@ -85,10 +85,10 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 @compute @workgroup_size(64)
 fn density_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if (i >= params.counts.y) {
+    if (gid.x >= params.counts.y) {
         return;
     }
+    let i = solid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
     let ks = params.k_solid;
     let kx = params.k_cross;
     let support = 2.0 * ks.h;

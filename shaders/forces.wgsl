@@ -153,10 +153,10 @@ fn liquid_gravity() -> vec3<f32> {
 
 @compute @workgroup_size(64)
 fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if (i >= params.counts.x) {
+    if (gid.x >= params.counts.x) {
         return;
     }
+    let i = liquid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
     let kl = params.k_liquid;
     let kx = params.k_cross;
     let g = liquid_gravity();
@@ -263,10 +263,10 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 @compute @workgroup_size(64)
 fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if (i >= params.counts.y) {
+    if (gid.x >= params.counts.y) {
         return;
     }
+    let i = solid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
     if ((solid_flags[i] & SOLID_KINEMATIC) != 0u) {
         solid_acc[i] = vec4<f32>(0.0);
         return;
@@ -432,10 +432,10 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
 // XSPH (2.69) of the liquid: ṽ_i = v_i + ε̃ Σ (m_j/ρ̄_ij)(v_j − v_i)W6.
 @compute @workgroup_size(64)
 fn forces_xsph_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if (i >= params.counts.x) {
+    if (gid.x >= params.counts.x) {
         return;
     }
+    let i = liquid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
     let vi = liquid_vel[i].xyz;
     let eps = params.xsph_l;
     if (eps == 0.0) {
@@ -467,10 +467,10 @@ fn forces_xsph_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
 // XSPH (2.69) of the solid (poly6 with R_s); kinematic particles keep v.
 @compute @workgroup_size(64)
 fn forces_xsph_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if (i >= params.counts.y) {
+    if (gid.x >= params.counts.y) {
         return;
     }
+    let i = solid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
     let vi = solid_vel[i].xyz;
     let eps = params.xsph_s;
     if (eps == 0.0 || (solid_flags[i] & SOLID_KINEMATIC) != 0u) {
