@@ -34,6 +34,10 @@ pub struct BenchRow {
     pub dt_limited_by: String,
     /// With `--record`: what recording the session cost.
     pub recording: Option<RecordCost>,
+    /// GPU: host time of the per-batch error scopes (push + pop) per batch [µs], and the batches it
+    /// is the mean of (the warm-up batch included).
+    pub error_scope_us_per_batch: Option<f64>,
+    pub batches: Option<u64>,
 }
 
 /// What recording a session costs (`perfuse bench --record`): the run is recorded as the viewer
@@ -185,6 +189,7 @@ pub fn measure_with(
     let stats = sim.stats();
     let limit = stats.dt_limited_by.iter().max_by_key(|(_, c)| **c).map(|(k, _)| k.clone()).unwrap_or_default();
     debug_assert_eq!(stats.steps - steps0, n);
+    let scopes = sim.error_scope_cost();
     let backend_name = sim.backend_name();
     let (backend_short, adapter) = match backend_name.split_once(' ') {
         Some((a, b)) => (a.to_string(), b.trim_matches(|c| c == '(' || c == ')').to_string()),
@@ -206,6 +211,8 @@ pub fn measure_with(
         real_time_factor: sim_time / wall,
         dt_limited_by: limit,
         recording,
+        error_scope_us_per_batch: scopes.map(|(s, b)| 1e6 * s / b.max(1) as f64),
+        batches: scopes.map(|(_, b)| b),
     })
 }
 
@@ -308,6 +315,18 @@ pub fn table(rows: &[BenchRow]) -> String {
             r.dt_limited_by,
             passes.join(", ")
         ));
+    }
+    for r in rows {
+        if let (Some(us), Some(b)) = (r.error_scope_us_per_batch, r.batches) {
+            let steps_per_batch = r.steps as f64 / b.max(1) as f64;
+            out.push_str(&format!(
+                "{} {} at {}: GPU error scopes {us:.1} µs of host time per batch ({b} batches; {:.1e} of a batch's wall time)\n",
+                r.backend,
+                r.adapter.chars().take(28).collect::<String>(),
+                r.particles,
+                us * 1e-3 / (r.ms_per_step * steps_per_batch.max(1.0)),
+            ));
+        }
     }
     out
 }

@@ -538,6 +538,15 @@ impl Simulation {
         }
     }
 
+    /// GPU back-end: host seconds spent in the per-batch error scopes (push + pop) and the batches
+    /// run, so that `perfuse bench` can report what catching GPU errors per batch costs. CPU: `None`.
+    pub fn error_scope_cost(&self) -> Option<(f64, u64)> {
+        match &self.engine {
+            Engine::Cpu(_) => None,
+            Engine::Gpu(g) => Some(g.error_scope_cost()),
+        }
+    }
+
     /// Device or host memory used by particle storage [bytes].
     pub fn memory_bytes(&self) -> usize {
         match &self.engine {

@@ -81,6 +81,8 @@ pub struct GpuSolver {
     wg_template: [u32; 8],
     timer: Option<PassTimer>,
     batches: u64,
+    /// Host time spent pushing and popping the per-batch error scopes [s] (`error_scope_cost`).
+    scope_host_s: f64,
     counts: Counts,
     cells: u32,
     t: f64,
@@ -328,6 +330,7 @@ impl GpuSolver {
             wg_template,
             timer,
             batches: 0,
+            scope_host_s: 0.0,
             counts,
             cells,
             t: st.t,
@@ -716,7 +719,22 @@ impl GpuSolver {
     /// one readback; the state at its start is kept in the backups.
     fn run_batch(&mut self, n: usize, t_end: f64) -> Result<BatchState, GpuError> {
         let device = self.ctx.device.clone();
-        device::ErrorScope::around(&device, "batch", || self.encode_and_run_batch(n, t_end))
+        // as ErrorScope::around, with the host time of the push and the pop measured
+        let t = std::time::Instant::now();
+        let scope = device::ErrorScope::push(&device);
+        let mut host = t.elapsed().as_secs_f64();
+        let result = self.encode_and_run_batch(n, t_end);
+        let t = std::time::Instant::now();
+        let popped = scope.pop("batch");
+        host += t.elapsed().as_secs_f64();
+        self.scope_host_s += host;
+        popped?;
+        result
+    }
+
+    /// What the per-batch error scopes cost the host: (seconds in push + pop, batches run).
+    pub fn error_scope_cost(&self) -> (f64, u64) {
+        (self.scope_host_s, self.batches)
     }
 
     fn encode_and_run_batch(&mut self, n: usize, t_end: f64) -> Result<BatchState, GpuError> {
