@@ -90,7 +90,8 @@ struct SimParams {
     cohesion_lb: f32,
     // upper bound of Δt (Params::dt_upper): stick relaxation time of wall friction
     dt_upper: f32,
-    _pad1: u32,
+    // hourglass-control coefficient c (numerics.hourglass); 0: off
+    hourglass: f32,
 }
 
 // Mirrors `StepState`: the GPU-resident Δt (SPEC §5.3) and the step status bitmask (STYLE §5.4).
@@ -350,6 +351,10 @@ const JACOBI_SWEEPS: u32 = 6u;
 @group(0) @binding(44) var<storage, read_write> emit_flow: array<f32>;
 // liquid particle ids (emitted particles get new ids; sinks compact the arrays)
 @group(0) @binding(45) var<storage, read_write> liquid_id: array<u32>;
+// hourglass control (solid.wgsl solid_fit): solid positions in the generated configuration (xyz) and the
+// best affine fit F̃ of each particle's bonds
+@group(0) @binding(47) var<storage, read_write> solid_pos_ref: array<vec4<f32>>;
+@group(0) @binding(48) var<storage, read_write> solid_affine: array<Mat3Gpu>;
 
 // ---- emitters (twin: src/sim/cpu/emit.rs) ----
 const FLOW_MAX: u32 = 1024u;

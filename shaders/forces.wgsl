@@ -147,6 +147,24 @@ fn cohesion_pair(s: f32, radius: f32, r: f32) -> f32 {
     return s * cos(PI * r / (2.0 * radius));
 }
 
+// Acceleration of solid particle i from the hourglass control of bond (i, j) (forces.rs
+// `hourglass_pair`): −c G (m_j/ρ_ref) W_C(|X|)/(|X|² ρ_ref) δ x̂ with δ = (½(F̃_i + F̃_j)X − x)·x̂,
+// x = x_j − x_i = −xij now, X = X_j − X_i in the generated configuration.
+fn hourglass_pair(fit_i: mat3x3<f32>, fit_j: mat3x3<f32>, x_ref_ij: vec3<f32>, xij: vec3<f32>, m_j: f32) -> vec3<f32> {
+    let big = min_image(x_ref_ij);
+    let now = -xij;
+    let r = len3(now);
+    let l0 = len3(big);
+    if (r <= 0.0 || l0 <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let u = now / r;
+    let delta = dot3(m3_mul_v(m3_add(fit_i, fit_j), big) * 0.5 - now, u);
+    let g_mod = 2.0 * (params.c10 + params.c01);
+    let k = params.hourglass * g_mod * (m_j / params.rho_ref_s) * w_cubic(params.k_solid, l0) / (l0 * l0 * params.rho_ref_s);
+    return u * -(k * delta);
+}
+
 fn liquid_gravity() -> vec3<f32> {
     return select(vec3<f32>(0.0), params.gravity.xyz, params.gravity.w != 0.0);
 }
@@ -291,8 +309,15 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let tau_i = m3_scale(m3_load(st_i.tau), inv2);
     let art_i = m3_load(st_i.art);
     var a = vec3<f32>(0.0);
-    // deviatoric stress over intact bonds (2.48), (2.43)
+    // deviatoric stress over intact bonds (2.48), (2.43), and the hourglass control
     let nb = bond_count[i];
+    let hg = params.hourglass > 0.0;
+    var fit_i = m3_identity();
+    var x0i = vec3<f32>(0.0);
+    if (hg) {
+        fit_i = m3_load(solid_affine[i]);
+        x0i = solid_pos_ref[i].xyz;
+    }
     for (var b = 0u; b < nb; b++) {
         let j = bond_table[i * cap + b];
         let pj4 = solid_pos[j];
@@ -301,6 +326,9 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         let rj = solid_dens[j].x;
         let tj = m3_div(m3_load(solid_tau_art[j].tau), rj * rj);
         a += m3_mul_v(m3_add(tau_i, tj), grad) * pj4.w;
+        if (hg) {
+            a += hourglass_pair(fit_i, m3_load(solid_affine[j]), solid_pos_ref[j].xyz - x0i, xij, pj4.w);
+        }
     }
     // isotropic pressure, artificial stress and artificial viscosity over current neighbours
     let pi = pr * inv2;

@@ -4,6 +4,8 @@
 //   (SPEC §3.5, D-13), σ = τ − nˢpˢI, and Monaghan's artificial stress R (2.59), D-21, from a fixed
 //   number of cyclic Jacobi sweeps (SPEC §3.8), operation for operation as the CPU.
 // * solid_def_grad: ∇u over the bond table (2.43) at xⁿ and F^{n+1} = (I + ∇u)Fⁿ (2.41)–(2.42), D-11.
+// * solid_fit: the best affine fit F̃ of each particle's intact bonds, for the hourglass control
+//   (numerics.hourglass; README: deviations from SPEC).
 #import common
 
 fn mooney_rivlin_tau(f: mat3x3<f32>, c10: f32, c01: f32) -> mat3x3<f32> {
@@ -125,4 +127,60 @@ fn solid_def_grad(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let f = m3_mul(m3_add(m3_identity(), grad_u), m3_load(solid_f[i]));
     solid_f[i] = m3_store(f);
+}
+
+struct InverseDet {
+    inv: mat3x3<f32>,
+    det: f32,
+}
+
+// M⁻¹ by cofactors, (c₁ × c₂, c₂ × c₀, c₀ × c₁)ᵀ / det, and det M (solid.rs `inverse_and_det`).
+fn m3_inverse(m: mat3x3<f32>) -> InverseDet {
+    let t0 = cross3(m[1], m[2]);
+    let t1 = cross3(m[2], m[0]);
+    let t2 = cross3(m[0], m[1]);
+    let det = dot3(m[2], t2);
+    let inv = 1.0 / det;
+    return InverseDet(m3_transpose(m3(t0 * inv, t1 * inv, t2 * inv)), det);
+}
+
+// F̃_i = [Σ w x_ij ⊗ X_ij][Σ w X_ij ⊗ X_ij]⁻¹ over the intact bonds, x_ij = x_j − x_i now, X_ij in the
+// generated configuration, w = W_C(|X_ij|); plane strain in 2-D (F̃_zz = 1); F̃ := F where the bonds do
+// not span the space (solid.rs `solid_fit`).
+@compute @workgroup_size(64)
+fn solid_fit(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= params.counts.y || params.hourglass <= 0.0) {
+        return;
+    }
+    let k = params.k_solid;
+    let cap = params.counts.w;
+    let xi = solid_pos[i].xyz;
+    let x0i = solid_pos_ref[i].xyz;
+    var a = m3_scale(m3_identity(), 0.0);
+    var b = m3_scale(m3_identity(), 0.0);
+    let n = bond_count[i];
+    for (var q = 0u; q < n; q++) {
+        let j = bond_table[i * cap + q];
+        let big = min_image(solid_pos_ref[j].xyz - x0i);
+        let now = min_image(solid_pos[j].xyz - xi);
+        let w = w_cubic(k, len3(big));
+        a = m3_add(a, m3_scale(outer3(now, big), w));
+        b = m3_add(b, m3_scale(outer3(big, big), w));
+    }
+    var tr = b[0].x + b[1].y + b[2].z;
+    var d = 3;
+    if (params.switches.x == 0u) {
+        a[2].z = 1.0;
+        b[2].z = 1.0;
+        tr = b[0].x + b[1].y;
+        d = 2;
+    }
+    let id = m3_inverse(b);
+    let scale = powi(tr / f32(d), d);
+    if (tr > 0.0 && id.det > 1e-6 * scale) {
+        solid_affine[i] = m3_store(m3_mul(a, id.inv));
+    } else {
+        solid_affine[i] = solid_f[i];
+    }
 }

@@ -91,6 +91,9 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
     s.n_s = n_s_s;
     s.p = p_s;
     solid::solid_stress(&cpu.params, &mut cpu.st.solid);
+    if cpu.params.hourglass > 0.0 {
+        cpu.st.solid.hg_fit = solid::solid_fit(&cpu.params, &cpu.st.solid);
+    }
     let (a_l, a_s, vx_l, vx_s) = {
         let nb = nbrs(cpu);
         let ctx = forces::ForceCtx {
@@ -306,6 +309,45 @@ fn stress_and_force_passes_match_cpu() {
         assert!(d_as <= 1e-4 * max_len(&s.a));
         let vmax = max_len(&l.v).max(max_len(&s.v));
         assert!(d_vl <= 1e-5 * vmax + 1e-9 && d_vs <= 1e-5 * vmax + 1e-9);
+    });
+}
+
+/// The hourglass control (`numerics.hourglass = 2`) on both back-ends: solid_fit's F̃ and the solid
+/// accelerations with the pair force, on the test block after 40 steps (its tool has pressed and sheared
+/// the tissue). Tolerances: F̃ entries 1e-5 (they are of order 1); solid a 1e-4 of max |a|; the control's
+/// own share of max |a| is printed and must not vanish.
+#[test]
+fn hourglass_control_matches_cpu() {
+    gpu_test("hourglass_control_matches_cpu", |ctx| {
+        let sc = perfused_block().with_override("numerics.hourglass=2").expect("override");
+        let mut cpu = stepped(solver_for(&sc), 40);
+        let mut gpu = gpu_from(ctx, &cpu);
+        gpu.run_stages(passes::EVALUATE).unwrap();
+        cpu_evaluate(&mut cpu);
+        let n = cpu.st.solid.x.len();
+        assert_eq!(cpu.st.solid.hg_fit.len(), n);
+        let fit: Vec<perfuse::sim::gpu::gpu_types::Mat3Gpu> = gpu.read_slot(Slot::SolidAffine, n).unwrap();
+        let mut d_fit = 0.0f32;
+        for (g, c) in fit.iter().zip(&cpu.st.solid.hg_fit) {
+            for (x, y) in Mat3::from(*g).to_cols_array().iter().zip(c.to_cols_array()) {
+                d_fit = d_fit.max((x - y).abs());
+            }
+        }
+        let as_: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, n).unwrap();
+        let g_a: Vec<Vec3> = as_.iter().map(xyz).collect();
+        let a_on = cpu.st.solid.a.clone();
+        let d_a = max_vec_diff(&g_a, &a_on);
+        // the control's share: the same evaluation of the same state without it
+        cpu.params.hourglass = 0.0;
+        cpu_evaluate(&mut cpu);
+        let share = max_vec_diff(&a_on, &cpu.st.solid.a);
+        eprintln!(
+            "hourglass: F̃ {d_fit:.3e}, solid a {d_a:.3e} (max {:.3e}; the control contributes up to {share:.3e})",
+            max_len(&a_on)
+        );
+        assert!(share > 1e-3 * max_len(&a_on), "the control acts on the sheared block");
+        assert!(d_fit <= 1e-5, "F̃ differs by {d_fit}");
+        assert!(d_a <= 1e-4 * max_len(&a_on));
     });
 }
 

@@ -246,6 +246,12 @@ pub struct Numerics {
     /// Speed [m/s] above which a particle counts as runaway (divergence); default 20·c_max.
     #[serde(default)]
     pub max_speed: Option<f64>,
+    /// Hourglass control of the solid (not in the thesis; README: deviations from SPEC): a pair force
+    /// over the intact bonds against the part of each bond's stretch that the best affine fit of the
+    /// particle's bonds does not explain, with this dimensionless coefficient c (0 < c ≤ 10; 2 damps the
+    /// zero-energy modes of a relaxing specimen). Absent: off, the thesis's operator.
+    #[serde(default)]
+    pub hourglass: Option<f64>,
 }
 
 fn d_h_over_dx() -> f64 {

@@ -275,6 +275,15 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
     if let Some(v) = n.max_speed {
         Check::positive("numerics.max_speed", v, "m/s")?;
     }
+    if let Some(v) = n.hourglass {
+        Check::range(
+            "numerics.hourglass",
+            v,
+            1e-6,
+            10.0,
+            "a dimensionless coefficient, e.g. 2; omit it to switch off",
+        )?;
+    }
 
     // A-priori time-step bound from the sound and viscous limits of (2.70): a dt_min above it, or a
     // fixed step beyond it, can never be met.

@@ -34,6 +34,8 @@ pub struct Params {
     pub cohesion_lb: f32,
     /// Allow negative liquid pressure (`numerics.liquid_tension`).
     pub liquid_tension: bool,
+    /// Hourglass-control coefficient c of `numerics.hourglass` (0: off).
+    pub hourglass: f32,
     pub k_s: f32,
     pub k_sat: f32,
     pub n_sat: f32,
@@ -198,6 +200,7 @@ impl Params {
             cohesion_ll: cohesion_ll as f32,
             cohesion_lb: cohesion_lb as f32,
             liquid_tension: n.liquid_tension,
+            hourglass: n.hourglass.unwrap_or(0.0) as f32,
             k_s: k_s as f32,
             k_sat: k_sat as f32,
             n_sat: n_sat as f32,

@@ -10,7 +10,7 @@
 use super::{BoundarySet, LiquidSet, Nbrs, ObjectContact, SolidSet};
 use crate::scenario::SolidFlags;
 use crate::sim::params::Params;
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 pub struct ForceCtx<'a> {
@@ -21,6 +21,28 @@ pub struct ForceCtx<'a> {
     pub contacts: &'a [ObjectContact],
     /// During relaxation with `gravity_solid_only`, the liquid feels no gravity.
     pub gravity_liquid: bool,
+}
+
+/// Acceleration of solid particle i from the hourglass control of bond (i, j) (`numerics.hourglass`,
+/// README: deviations from SPEC): δ = (½(F̃_i + F̃_j)X_ij − x_ij)·x̂_ij, the part of the bond's stretch
+/// that the affine fits F̃ (`solid::solid_fit`) of its two ends do not explain, drives the central pair
+/// force −c G V_i V_j W_C(|X_ij|)/|X_ij|² δ x̂_ij (after Ganzenmüller 2015; G = 2(C10 + C01), V = m/ρ_ref,
+/// x_ij = x_j − x_i now, X_ij in the generated configuration). It is antisymmetric in (i, j), so it
+/// conserves momentum, and zero for any affine motion. `xij` is x_i − x_j as in the stress loop.
+#[inline]
+pub fn hourglass_pair(p: &Params, fit_i: Mat3, fit_j: Mat3, x_ref_ij: Vec3, xij: Vec3, m_j: f32) -> Vec3 {
+    let big = super::grid::min_image(x_ref_ij, p.periodic_len());
+    let now = -xij;
+    let r = now.length();
+    let l0 = big.length();
+    if r <= 0.0 || l0 <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let u = now / r;
+    let delta = ((fit_i + fit_j) * big * 0.5 - now).dot(u);
+    let g_mod = 2.0 * (p.c10 + p.c01);
+    let k = p.hourglass * g_mod * (m_j / p.rho_ref_s) * p.k_solid.w_cubic(l0) / (l0 * l0 * p.rho_ref_s);
+    u * -(k * delta)
 }
 
 /// Monaghan's Π_ij (2.54)–(2.58); zero for separating pairs.
@@ -338,6 +360,7 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
     let g_l = if c.gravity_liquid { c.gravity } else { Vec3::ZERO };
     let dt_upper = p.dt_upper();
     let dims = p.dim.n();
+    let hg = if s.hg_fit.len() == s.x.len() { p.hourglass } else { 0.0 };
     (0..s.x.len())
         .into_par_iter()
         .with_min_len(super::MIN_PAR_LEN)
@@ -349,13 +372,16 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
             let inv2 = 1.0 / (rho * rho);
             let tau_i = s.tau[i] * inv2;
             let mut a = Vec3::ZERO;
-            // Deviatoric stress over intact bonds (2.48), (2.43).
+            // Deviatoric stress over intact bonds (2.48), (2.43), and the hourglass control.
             for &j in &s.bonds[i * cap..i * cap + s.bond_count[i] as usize] {
                 let j = j as usize;
                 let xij = super::grid::min_image(xi - s.x[j], period);
                 let grad = xij * ks.grad_cubic_factor(xij.length());
                 let tj = s.tau[j] / (s.rho[j] * s.rho[j]);
                 a += (tau_i + tj) * grad * s.m[j];
+                if hg > 0.0 {
+                    a += hourglass_pair(p, s.hg_fit[i], s.hg_fit[j], s.x_ref[j] - s.x_ref[i], xij, s.m[j]);
+                }
             }
             // Isotropic pressure, artificial stress and artificial viscosity over current neighbours.
             let pi = pr * inv2;

@@ -72,6 +72,10 @@ pub struct SolidSet {
     pub tau: Vec<Mat3>,
     /// Artificial stress R (2.59) [Pa·m⁶/kg²].
     pub art: Vec<Mat3>,
+    /// Best affine fit F̃ of each particle's bonds (`solid::solid_fit`, hourglass control); derived
+    /// in every evaluation, empty when the control is off.
+    #[serde(skip)]
+    pub hg_fit: Vec<Mat3>,
     pub a: Vec<Vec3>,
     pub a0: Vec<Vec3>,
     pub vx: Vec<Vec3>,
@@ -212,6 +216,7 @@ impl CpuSolver {
             def_grad: vec![Mat3::IDENTITY; ns],
             tau: vec![Mat3::ZERO; ns],
             art: vec![Mat3::ZERO; ns],
+            hg_fit: Vec::new(),
             a: vec![Vec3::ZERO; ns],
             a0: vec![Vec3::ZERO; ns],
             vx: vec![Vec3::ZERO; ns],
@@ -400,6 +405,9 @@ impl CpuSolver {
             s.p = p_s;
             if self.params.solid_dynamic {
                 solid::solid_stress(&self.params, &mut self.st.solid);
+                if self.params.hourglass > 0.0 {
+                    self.st.solid.hg_fit = solid::solid_fit(&self.params, &self.st.solid);
+                }
             }
         }
         let t0 = self.timers.lap("solid", t0);

@@ -5,6 +5,8 @@
 //! * `solid_stress`: Mooney–Rivlin deviatoric Cauchy stress τ (2.12)/(2.15) with the isochoric B̄
 //!   (SPEC D-13), full stress σ = τ − nˢpˢI, and Monaghan's artificial stress R (2.59), D-21, from a
 //!   fixed number of cyclic Jacobi sweeps (identical on both back-ends).
+//! * `solid_fit`: the best affine fit F̃ of each particle's intact bonds, for the hourglass control
+//!   (`numerics.hourglass`; README: deviations from SPEC).
 
 use super::SolidSet;
 use crate::sim::params::Params;
@@ -91,6 +93,58 @@ pub fn artificial_stress(sigma: Mat3, rho: f32, eps: f32) -> Mat3 {
 #[inline]
 pub fn outer(u: Vec3, w: Vec3) -> Mat3 {
     Mat3::from_cols(u * w.x, u * w.y, u * w.z)
+}
+
+/// M⁻¹ by cofactors, (c₁ × c₂, c₂ × c₀, c₀ × c₁)ᵀ / det (solid.wgsl `m3_inverse`, operation for
+/// operation), and det M.
+pub fn inverse_and_det(m: Mat3) -> (Mat3, f32) {
+    let (c0, c1, c2) = (m.x_axis, m.y_axis, m.z_axis);
+    let t0 = c1.cross(c2);
+    let t1 = c2.cross(c0);
+    let t2 = c0.cross(c1);
+    let det = c2.dot(t2);
+    let inv = 1.0 / det;
+    (Mat3::from_cols(t0 * inv, t1 * inv, t2 * inv).transpose(), det)
+}
+
+/// solid_fit: F̃_i = [Σ_j w_ij x_ij ⊗ X_ij][Σ_j w_ij X_ij ⊗ X_ij]⁻¹ over the intact bonds of i, with
+/// x_ij = x_j − x_i now, X_ij the same bond in the generated configuration (`x_ref`) and w_ij = W_C(|X_ij|):
+/// the affine map that best explains the bonds (least squares). Unlike the SPH gradient (2.43) it
+/// reproduces an affine deformation exactly at a surface or beside a crack, so that F̃X_ij − x_ij is
+/// the non-affine (zero-energy, "hourglass") part of the motion alone. 2-D: plane strain, F̃_zz = 1.
+/// Where the bonds do not span the space (det B ≤ 10⁻⁶ (tr B/d)^d, e.g. a fragment of two particles)
+/// F̃ := F, the particle's deformation gradient.
+pub fn solid_fit(p: &Params, s: &SolidSet) -> Vec<Mat3> {
+    let k = &p.k_solid;
+    let period = p.periodic_len();
+    let cap = s.bond_capacity;
+    let three_d = p.dim.n() == 3;
+    (0..s.x.len())
+        .into_par_iter()
+        .with_min_len(super::MIN_PAR_LEN)
+        .map(|i| {
+            let mut a = Mat3::ZERO;
+            let mut b = Mat3::ZERO;
+            for &j in &s.bonds[i * cap..i * cap + s.bond_count[i] as usize] {
+                let j = j as usize;
+                let big = super::grid::min_image(s.x_ref[j] - s.x_ref[i], period);
+                let now = super::grid::min_image(s.x[j] - s.x[i], period);
+                let w = k.w_cubic(big.length());
+                a += outer(now, big) * w;
+                b += outer(big, big) * w;
+            }
+            let (tr, d) = if three_d {
+                (b.x_axis.x + b.y_axis.y + b.z_axis.z, 3)
+            } else {
+                a.z_axis.z = 1.0;
+                b.z_axis.z = 1.0;
+                (b.x_axis.x + b.y_axis.y, 2)
+            };
+            let (inv, det) = inverse_and_det(b);
+            let scale = (tr / d as f32).powi(d);
+            if tr > 0.0 && det > 1e-6 * scale { a * inv } else { s.def_grad[i] }
+        })
+        .collect()
 }
 
 /// solid_stress: τ, then σ = τ − nˢpˢI and R for every solid particle.

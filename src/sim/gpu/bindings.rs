@@ -60,11 +60,15 @@ pub enum Slot {
     LiquidId,
     /// Grid passes: per-block cell counts, then block offsets, of the three-phase prefix sum.
     GridBlockSums,
+    /// Hourglass control: solid positions in the generated configuration, and the best affine fit F̃
+    /// of each particle's bonds (`solid_fit`).
+    SolidPosRef,
+    SolidAffine,
 }
 
 impl Slot {
     /// The slot with the highest binding number (sizes the slot table).
-    pub const LAST: Slot = Slot::GridBlockSums;
+    pub const LAST: Slot = Slot::SolidAffine;
 
     /// Binding number in group 0 (common.wgsl).
     pub const fn binding(self) -> u32 {
@@ -121,6 +125,8 @@ impl Slot {
             Slot::EmitFlow => "emit_flow",
             Slot::LiquidId => "liquid_id",
             Slot::GridBlockSums => "grid_block_sums",
+            Slot::SolidPosRef => "solid_pos_ref",
+            Slot::SolidAffine => "solid_affine",
         }
     }
 
@@ -166,5 +172,6 @@ mod tests {
         assert_eq!(Slot::BondLimit.binding(), 40);
         assert_eq!(Slot::LiquidId.binding(), 45);
         assert_eq!(Slot::GridBlockSums.binding(), 46);
+        assert_eq!(Slot::SolidAffine.binding(), 48);
     }
 }

@@ -100,7 +100,8 @@ pub struct SimParams {
     pub cohesion_lb: f32,
     /// Upper bound of Δt (`Params::dt_upper`): the stick relaxation time of wall friction.
     pub dt_upper: f32,
-    pub _pad1: u32,
+    /// Hourglass-control coefficient c (`numerics.hourglass`); 0: off.
+    pub hourglass: f32,
 }
 
 /// Set counts of a scene, as the uniform block carries them.
@@ -174,7 +175,7 @@ impl SimParams {
             cohesion_ll: p.cohesion_ll,
             cohesion_lb: p.cohesion_lb,
             dt_upper: p.dt_upper(),
-            _pad1: 0,
+            hourglass: p.hourglass,
         }
     }
 }
@@ -429,6 +430,7 @@ pub const LAYOUTS: &[StructLayout] = &[
             ("wicking", offset_of!(SimParams, wicking)),
             ("cohesion_lb", offset_of!(SimParams, cohesion_lb)),
             ("dt_upper", offset_of!(SimParams, dt_upper)),
+            ("hourglass", offset_of!(SimParams, hourglass)),
         ],
     ),
     (

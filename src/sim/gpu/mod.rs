@@ -387,6 +387,10 @@ impl GpuSolver {
         let st: Vec<StressGpu> =
             (0..s.x.len()).map(|i| StressGpu { tau: s.tau[i].into(), art: s.art[i].into() }).collect();
         out.push((Slot::SolidStress, bytes(&st)));
+        out.push((Slot::SolidPosRef, bytes(&plain(&s.x_ref))));
+        let fit: Vec<Mat3Gpu> =
+            (0..s.x.len()).map(|i| s.hg_fit.get(i).copied().unwrap_or(s.def_grad[i]).into()).collect();
+        out.push((Slot::SolidAffine, bytes(&fit)));
         out.push((Slot::BondTable, bytes(&s.bonds)));
         out.push((Slot::BondCount, bytes(&s.bond_count)));
         out.push((Slot::BondLimit, bytes(&s.bond_limit)));

@@ -105,6 +105,13 @@ pub const DENSITY_SOLID: PassSpec = pass(
 );
 pub const SOLID_STRESS: PassSpec =
     pass("solid_stress", "solid", &[Params, SolidDefGrad, SolidDens, SolidStress], Dispatch::Solid);
+/// The best affine fit of each particle's bonds for the hourglass control (a no-op when it is off).
+pub const SOLID_FIT: PassSpec = pass(
+    "solid_fit",
+    "solid",
+    &[Params, SolidPos, SolidPosRef, SolidDefGrad, SolidAffine, BondTable, BondCount],
+    Dispatch::Solid,
+);
 pub const SOLID_DEF_GRAD: PassSpec = pass(
     "solid_def_grad",
     "solid",
@@ -157,6 +164,8 @@ pub const FORCES_SOLID: PassSpec = pass(
         BoundaryPos,
         BoundaryVel,
         BoundaryPos0,
+        SolidPosRef,
+        SolidAffine,
         NBR_ALL[0],
         NBR_ALL[1],
         NBR_ALL[2],
@@ -319,6 +328,7 @@ pub const ALL_PASSES: &[PassSpec] = &[
     DENSITY_LIQUID,
     DENSITY_SOLID,
     SOLID_STRESS,
+    SOLID_FIT,
     SOLID_DEF_GRAD,
     FORCES_LIQUID,
     FORCES_SOLID,
@@ -383,6 +393,7 @@ pub const EVALUATE: &[Stage] = &[
     Stage::Pass(DENSITY_LIQUID),
     Stage::Pass(DENSITY_SOLID),
     Stage::Pass(SOLID_STRESS),
+    Stage::Pass(SOLID_FIT),
     Stage::Pass(FORCES_LIQUID),
     Stage::Pass(FORCES_SOLID),
 ];
@@ -393,6 +404,7 @@ pub const STEP_FIRST: &[Stage] = &[
     Stage::Pass(DENSITY_LIQUID),
     Stage::Pass(DENSITY_SOLID),
     Stage::Pass(SOLID_STRESS),
+    Stage::Pass(SOLID_FIT),
     Stage::Pass(FORCES_LIQUID),
     Stage::Pass(FORCES_SOLID),
     Stage::Pass(FORCES_XSPH_LIQUID),
@@ -422,6 +434,7 @@ pub const STEP_SECOND: &[Stage] = &[
     Stage::Pass(DENSITY_LIQUID),
     Stage::Pass(DENSITY_SOLID),
     Stage::Pass(SOLID_STRESS),
+    Stage::Pass(SOLID_FIT),
     Stage::Pass(FORCES_LIQUID),
     Stage::Pass(FORCES_SOLID),
     Stage::Pass(INTEGRATE_CORRECT_LIQUID),
