@@ -309,15 +309,8 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let tau_i = m3_scale(m3_load(st_i.tau), inv2);
     let art_i = m3_load(st_i.art);
     var a = vec3<f32>(0.0);
-    // deviatoric stress over intact bonds (2.48), (2.43), and the hourglass control
+    // deviatoric stress over intact bonds (2.48), (2.43)
     let nb = bond_count[i];
-    let hg = params.hourglass > 0.0;
-    var fit_i = m3_identity();
-    var x0i = vec3<f32>(0.0);
-    if (hg) {
-        fit_i = m3_load(solid_affine[i]);
-        x0i = solid_pos_ref[i].xyz;
-    }
     for (var b = 0u; b < nb; b++) {
         let j = bond_table[i * cap + b];
         let pj4 = solid_pos[j];
@@ -326,7 +319,16 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         let rj = solid_dens[j].x;
         let tj = m3_div(m3_load(solid_tau_art[j].tau), rj * rj);
         a += m3_mul_v(m3_add(tau_i, tj), grad) * pj4.w;
-        if (hg) {
+    }
+    // the hourglass control over the same bonds, in its own loop so that the stress loop carries no
+    // extra state when the control is off
+    if (params.hourglass > 0.0) {
+        let fit_i = m3_load(solid_affine[i]);
+        let x0i = solid_pos_ref[i].xyz;
+        for (var b = 0u; b < nb; b++) {
+            let j = bond_table[i * cap + b];
+            let pj4 = solid_pos[j];
+            let xij = min_image(xi - pj4.xyz);
             a += hourglass_pair(fit_i, m3_load(solid_affine[j]), solid_pos_ref[j].xyz - x0i, xij, pj4.w);
         }
     }

@@ -372,14 +372,20 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
             let inv2 = 1.0 / (rho * rho);
             let tau_i = s.tau[i] * inv2;
             let mut a = Vec3::ZERO;
-            // Deviatoric stress over intact bonds (2.48), (2.43), and the hourglass control.
-            for &j in &s.bonds[i * cap..i * cap + s.bond_count[i] as usize] {
+            // Deviatoric stress over intact bonds (2.48), (2.43).
+            let bonds = &s.bonds[i * cap..i * cap + s.bond_count[i] as usize];
+            for &j in bonds {
                 let j = j as usize;
                 let xij = super::grid::min_image(xi - s.x[j], period);
                 let grad = xij * ks.grad_cubic_factor(xij.length());
                 let tj = s.tau[j] / (s.rho[j] * s.rho[j]);
                 a += (tau_i + tj) * grad * s.m[j];
-                if hg > 0.0 {
+            }
+            // The hourglass control over the same bonds (its own loop, as in forces.wgsl).
+            if hg > 0.0 {
+                for &j in bonds {
+                    let j = j as usize;
+                    let xij = super::grid::min_image(xi - s.x[j], period);
                     a += hourglass_pair(p, s.hg_fit[i], s.hg_fit[j], s.x_ref[j] - s.x_ref[i], xij, s.m[j]);
                 }
             }

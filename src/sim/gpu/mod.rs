@@ -633,6 +633,10 @@ impl GpuSolver {
         if wg == 0 || (grid.is_some() && self.workgroups(&passes::GRID_COUNT, grid) == 0) {
             return;
         }
+        // the hourglass fit is not dispatched when the control is off (the CPU does not compute it)
+        if spec.entry == passes::SOLID_FIT.entry && self.params.hourglass <= 0.0 {
+            return;
+        }
         let Some(p) = self.pipelines.get(spec.entry) else { return };
         let Some((_, bg)) = p.groups.iter().find(|(g, _)| *g == grid) else { return };
         pass.set_pipeline(&p.pipeline);
