@@ -62,12 +62,8 @@ fn max_len(a: &[Vec3]) -> f32 {
 
 fn nbrs(cpu: &CpuSolver) -> Nbrs<'_> {
     let p = &cpu.params;
-    let mk = |list, pos| Neighbours { grid: &p.grid, list, pos, period: p.periodic_len(), three_d: p.dim.n() == 3 };
-    Nbrs {
-        liquid: mk(&cpu.grids.liquid, &cpu.st.liquid.x[..]),
-        solid: mk(&cpu.grids.solid, &cpu.st.solid.x[..]),
-        boundary: mk(&cpu.grids.boundary, &cpu.st.boundary.x[..]),
-    }
+    let mk = |list| Neighbours { grid: &p.grid, list, period: p.periodic_len(), three_d: p.dim.n() == 3 };
+    Nbrs { liquid: mk(&cpu.grids.liquid), solid: mk(&cpu.grids.solid), boundary: mk(&cpu.grids.boundary) }
 }
 
 /// The CPU evaluation of `CpuSolver::evaluate` (private there), pass by pass, on `cpu`'s state.

@@ -77,7 +77,7 @@ pub fn blade_crosses(bl: &Blade, xi: Vec3, d: Vec3, dims: usize) -> bool {
 pub fn fracture_build_bonds(p: &Params, s: &mut SolidSet, list: &CellList) {
     let n = s.x.len();
     let radius = 2.0 * p.k_solid.h;
-    let nb = Neighbours { grid: &p.grid, list, pos: &s.x, period: p.periodic_len(), three_d: p.dim.n() == 3 };
+    let nb = Neighbours { grid: &p.grid, list, period: p.periodic_len(), three_d: p.dim.n() == 3 };
     let mut lists: Vec<Vec<u32>> = Vec::with_capacity(n);
     for i in 0..n {
         let mut l = Vec::new();

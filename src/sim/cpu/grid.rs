@@ -23,6 +23,9 @@ pub const GRID_REACH: i32 = 2;
 pub struct CellList {
     /// Particle indices sorted by cell, ascending index inside a cell.
     pub order: Vec<u32>,
+    /// The particles' positions at the build, in `order`'s order (`CellEntry.pos` of common.wgsl): the
+    /// distance tests of a neighbour walk read consecutive memory instead of gathering by index.
+    pub pos: Vec<Vec3>,
     /// `cell_start[c]..cell_start[c + 1]` is the range of `order` in cell c.
     pub cell_start: Vec<u32>,
     /// Particles found outside the domain (clamped into the border cells).
@@ -73,18 +76,21 @@ pub fn grid_build(g: &GridDims, pos: &[Vec3], out: &mut CellList) {
     let mut cursor: Vec<u32> = out.cell_start[..cells].to_vec();
     out.order.clear();
     out.order.resize(pos.len(), 0);
+    out.pos.clear();
+    out.pos.resize(pos.len(), Vec3::ZERO);
     for (i, &c) in cell_of.iter().enumerate() {
         let slot = &mut cursor[c as usize];
         out.order[*slot as usize] = i as u32;
+        out.pos[*slot as usize] = pos[i];
         *slot += 1;
     }
 }
 
-/// Neighbour query over one cell-sorted set.
+/// Neighbour query over one cell-sorted set, at the positions the set had when its list was built (the
+/// solver rebuilds the lists whenever positions change, as the GPU twin does).
 pub struct Neighbours<'a> {
     pub grid: &'a GridDims,
     pub list: &'a CellList,
-    pub pos: &'a [Vec3],
     /// Periodic length per axis, 0 where not periodic.
     pub period: Vec3,
     pub three_d: bool,
@@ -114,14 +120,15 @@ impl Neighbours<'_> {
         let r2max = radius * radius;
         let nx = g.n[0] as i32;
         let wraps = self.period[0] > 0.0 && (c[0] < GRID_REACH || c[0] >= nx - GRID_REACH);
+        let periodic = self.period != Vec3::ZERO;
         let mut visit = |first: usize, last: usize| {
             let (s, e) = (self.list.cell_start[first] as usize, self.list.cell_start[last + 1] as usize);
-            for &j in &self.list.order[s..e] {
-                let j = j as usize;
-                let xij = min_image(xi - self.pos[j], self.period);
+            for (&j, &xj) in self.list.order[s..e].iter().zip(&self.list.pos[s..e]) {
+                let d = xi - xj;
+                let xij = if periodic { min_image(d, self.period) } else { d };
                 let r2 = xij.length_squared();
                 if r2 < r2max {
-                    f(j, xij, r2.sqrt());
+                    f(j as usize, xij, r2.sqrt());
                 }
             }
         };
@@ -193,7 +200,7 @@ mod tests {
             pos.push(Vec3::new(0.02, -0.004, if three_d { 0.02 } else { 0.0 })); // outside, below the non-periodic y
             let mut list = CellList::default();
             grid_build(&g, &pos, &mut list);
-            let nb = Neighbours { grid: &g, list: &list, pos: &pos, period, three_d };
+            let nb = Neighbours { grid: &g, list: &list, period, three_d };
             for (i, &xi) in pos.iter().enumerate() {
                 let mut found = Vec::new();
                 nb.for_each(xi, radius, |j, _, _| found.push(j));

@@ -362,15 +362,14 @@ impl CpuSolver {
     }
 
     fn neighbours<'a>(&'a self, set: Set) -> Neighbours<'a> {
-        let (list, pos) = match set {
-            Set::Liquid => (&self.grids.liquid, &self.st.liquid.x[..]),
-            Set::Solid => (&self.grids.solid, &self.st.solid.x[..]),
-            Set::Boundary => (&self.grids.boundary, &self.st.boundary.x[..]),
+        let list = match set {
+            Set::Liquid => &self.grids.liquid,
+            Set::Solid => &self.grids.solid,
+            Set::Boundary => &self.grids.boundary,
         };
         Neighbours {
             grid: &self.params.grid,
             list,
-            pos,
             period: self.params.periodic_len(),
             three_d: self.params.dim.n() == 3,
         }
