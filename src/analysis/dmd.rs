@@ -854,8 +854,9 @@ pub struct ModeSummary {
     pub growth_rate: f64,
     /// |a_j| (unit-norm modes).
     pub amplitude: f64,
-    /// |a_j| · sqrt(mean over the training window of |λ_j|^{2k}): the mode's RMS size over the record, small
-    /// for fast-decaying modes whatever their |a_j|.
+    /// |a_j| · sqrt(mean over the training window of |μ_j|^{2k}), μ_j the stabilised eigenvalue: the mode's RMS
+    /// size over the record in the stabilised reconstruction, small for fast-decaying modes whatever their |a_j|
+    /// (what [`DmdModel::dominant_frequency_hz`] ranks by).
     pub window_rms_amplitude: f64,
     /// See [`DmdModel::is_oscillating`].
     pub oscillating: bool,
@@ -1051,11 +1052,25 @@ impl DmdModel {
         f >= self.min_oscillation_frequency_hz() * (1.0 - 1e-9) && g.abs() <= 2.0 * std::f64::consts::PI * f
     }
 
-    /// |f| of the largest-amplitude oscillating mode ([`Self::is_oscillating`]); `None` if there is none.
+    /// |f| of the largest oscillating mode ([`Self::is_oscillating`]), its size taken as its RMS amplitude over
+    /// the training window in the stabilised reconstruction (5.7), |a_j| · sqrt(mean_k |μ_j|^{2k}); `None` if
+    /// there is none.
+    ///
+    /// Not |a_j| alone: the amplitudes are fitted to x_1, so a strongly damped pair that only shapes the first
+    /// seconds can carry a large |a_j| (on the 50-s oscillating wall a 0.27 Hz pair decaying at 1.6 s⁻¹ has
+    /// |a| = 33 against 3.5 for the 0.49 Hz forced sloshing). Weighting a mode by its time evolution over the
+    /// record is the dominant-mode criterion of Kou & Zhang (Eur. J. Mech. B/Fluids 62, 2017).
     pub fn dominant_frequency_hz(&self) -> Option<f64> {
         let f = self.frequencies_hz();
-        // Modes are sorted by amplitude already.
-        (0..self.rank).find(|&j| self.is_oscillating(j)).map(|j| f[j].abs())
+        let size = |j: usize| self.amplitudes[j].norm() * self.window_rms_factor(j);
+        // First of the largest (conjugates tie; amplitude order breaks the tie deterministically).
+        (0..self.rank)
+            .filter(|&j| self.is_oscillating(j))
+            .fold(None, |best: Option<usize>, j| match best {
+                Some(b) if size(b) >= size(j) => Some(b),
+                _ => Some(j),
+            })
+            .map(|j| f[j].abs())
     }
 
     /// Per-mode scalars, in amplitude order.
@@ -1081,7 +1096,7 @@ impl DmdModel {
     /// sqrt((1/m) Σ_{k<m} |λ_j|^{2k}) over the m training snapshots.
     fn window_rms_factor(&self, j: usize) -> f64 {
         let m = self.n_train as f64;
-        let q = 2.0 * self.log_eigenvalues[j].re; // ln |λ|²
+        let q = 2.0 * self.log_eigenvalues[j].re.min(0.0); // ln |μ|², stabilised as in `exponents`
         if q.abs() * m < 1e-9 {
             return 1.0;
         }
@@ -1955,6 +1970,24 @@ mod tests {
         let top_persistent = modes.iter().position(|md| md.oscillating).expect("oscillation");
         assert!(top_transient < top_persistent, "the transient should have the larger |a|: {modes:?}");
         assert!(modes[top_transient].window_rms_amplitude < modes[top_persistent].window_rms_amplitude);
+        let fd = model.dominant_frequency_hz().expect("dominant");
+        assert!((fd - 0.2 / (2.0 * PI * 0.1)).abs() < 1e-8, "dominant {fd}");
+    }
+
+    #[test]
+    fn dominant_frequency_weighs_damped_pairs_by_their_life_in_the_window() {
+        // A damped pair 0.9e^{±0.5i} (g = −1.05 s⁻¹, f = 0.80 Hz: under a factor e^{2π} per cycle, so it counts as
+        // an oscillation) with five times the amplitude of the persistent pair e^{±0.2i}: over 200 snapshots
+        // its RMS size is 5 · 0.16 = 0.8 against 1, so the persistent pair is the dominant one.
+        let eigs = [Eig::Real(1.0), Eig::Pair(1.0, 0.2), Eig::Pair(0.9, 0.5)];
+        let (s, _) = lifted_system(20, &eigs, &[3.0, 1.0, 0.0, 5.0, 0.0], 200, 0.1, 29);
+        let model = fit(&s, RankSelection::Full).expect("fit");
+        let modes = model.modes();
+        let damped = modes.iter().position(|md| md.growth_rate < -0.5).expect("damped pair");
+        let persistent = modes.iter().position(|md| md.oscillating && md.growth_rate.abs() < 1e-6).expect("pair");
+        assert!(modes[damped].oscillating, "the damped pair is an oscillation: {:?}", modes[damped]);
+        assert!(damped < persistent, "the damped pair should have the larger |a|: {modes:?}");
+        assert!(modes[damped].window_rms_amplitude < modes[persistent].window_rms_amplitude);
         let fd = model.dominant_frequency_hz().expect("dominant");
         assert!((fd - 0.2 / (2.0 * PI * 0.1)).abs() < 1e-8, "dominant {fd}");
     }
