@@ -1093,7 +1093,7 @@ impl DmdModel {
             .collect()
     }
 
-    /// sqrt((1/m) Σ_{k<m} |λ_j|^{2k}) over the m training snapshots.
+    /// sqrt((1/m) Σ_{k<m} |μ_j|^{2k}) over the m training snapshots, μ_j the stabilised eigenvalue (|μ_j| = min(|λ_j|, 1)).
     fn window_rms_factor(&self, j: usize) -> f64 {
         let m = self.n_train as f64;
         let q = 2.0 * self.log_eigenvalues[j].re.min(0.0); // ln |μ|², stabilised as in `exponents`
