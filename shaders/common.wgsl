@@ -709,6 +709,19 @@ fn nbr_span(c: vec3<i32>, k: u32) -> vec2<i32> {
     return vec2<i32>(mid + lo, mid + hi);
 }
 
+// min_image for a neighbour walk's candidates (twin of grid.rs's min_image_wrapped): positions are
+// wrapped into the domain, so |d| < l and one add or subtract of l is the minimum image, without the
+// division; it equals min_image except half a period apart, beyond every search radius.
+fn min_image_wrapped(d: vec3<f32>) -> vec3<f32> {
+    let l = params.period.xyz;
+    if (all(l <= vec3<f32>(0.0))) {
+        return d;
+    }
+    let half = 0.5 * l;
+    let w = select(select(d, d + l, d < -half), d - l, d > half);
+    return select(d, w, l > vec3<f32>(0.0));
+}
+
 // Minimum-image difference on periodic axes (SPEC §4.3), per component without a loop (it runs for
 // every neighbour candidate): d − l·round(d/l) where l > 0, d elsewhere (the unselected quotient of a
 // non-periodic axis, d/0, is discarded).

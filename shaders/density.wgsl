@@ -32,7 +32,7 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
             let e = liquid_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2l) {
                 rho += liquid_pos[j].w * w_poly6(kl, sqrt(r2));
@@ -46,7 +46,7 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
             let e = boundary_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2l) {
                 rho += boundary_pos[j].w * w_poly6(kl, sqrt(r2));
@@ -61,7 +61,7 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
             let e = solid_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2x) {
                 let r = sqrt(r2);
@@ -108,7 +108,7 @@ fn density_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
             let e = solid_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2s && j != i) {
                 drho += solid_pos[j].w * dot3(vi - solid_vel[j].xyz, xij * grad_cubic_factor(ks, sqrt(r2)));
@@ -122,7 +122,7 @@ fn density_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
             let e = boundary_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2s) {
                 let vb = boundary_vel[j];
@@ -139,7 +139,7 @@ fn density_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
             for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
                 let e = liquid_order[q];
                 let j = e.id;
-                let xij = min_image(xi - e.pos);
+                let xij = min_image_wrapped(xi - e.pos);
                 let r2 = dot3(xij, xij);
                 if (r2 < r2x) {
                     sum += liquid_pos[j].w * w_poly6(kx, sqrt(r2));

@@ -199,7 +199,7 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
             let e = liquid_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2l && j != i) {
                 let r = sqrt(r2);
@@ -229,7 +229,7 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
             let e = boundary_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2l) {
                 let obj = bitcast<u32>(boundary_pos0[j].w);
@@ -253,7 +253,7 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
             let e = solid_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2x) {
                 let r = sqrt(r2);
@@ -344,7 +344,7 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
             let e = solid_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2s && j != i) {
                 let r = sqrt(r2);
@@ -374,7 +374,7 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
             let e = boundary_order[q];
             let j = e.id;
-            let xib = min_image(xi - e.pos);
+            let xib = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xib, xib);
             if (r2 < r2s) {
                 let r = sqrt(r2);
@@ -416,7 +416,7 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
             for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
                 let e = liquid_order[q];
                 let j = e.id;
-                let xij = min_image(xi - e.pos);
+                let xij = min_image_wrapped(xi - e.pos);
                 let r2 = dot3(xij, xij);
                 if (r2 < r2x) {
                     let dj = liquid_dens[j];
@@ -444,7 +444,7 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
             for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
                 let e = liquid_order[q];
                 let j = e.id;
-                let xji = min_image(xi - e.pos);
+                let xji = min_image_wrapped(xi - e.pos);
                 let r2 = dot3(xji, xji);
                 if (r2 < r2l) {
                     let xjb = -xji;
@@ -484,7 +484,7 @@ fn forces_xsph_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
             let e = liquid_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2k && j != i) {
                 d += (liquid_vel[j].xyz - vi) * (liquid_pos[j].w / (0.5 * (rho_i + liquid_dens[j].x)) * w_poly6(k, sqrt(r2)));
@@ -519,7 +519,7 @@ fn forces_xsph_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
             let e = solid_order[q];
             let j = e.id;
-            let xij = min_image(xi - e.pos);
+            let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2k && j != i) {
                 d += (solid_vel[j].xyz - vi) * (solid_pos[j].w / (0.5 * (rho_i + solid_dens[j].x)) * w_poly6(k, sqrt(r2)));

@@ -108,6 +108,26 @@ pub fn min_image(mut d: Vec3, period: Vec3) -> Vec3 {
     d
 }
 
+/// [`min_image`] without its division, for a neighbour walk: positions are wrapped into the domain
+/// (`integrate::wrap_periodic`), so |d| < l and one add or subtract of l is the minimum image. The two
+/// agree bit for bit except where d/l rounds onto ±½ — a pair half a period apart, beyond every search
+/// radius, which the walk's distance test drops either way. (The periodic 2-D validation channels ran
+/// the division for every candidate.)
+#[inline]
+fn min_image_wrapped(mut d: Vec3, period: Vec3, half: Vec3) -> Vec3 {
+    for a in 0..3 {
+        let l = period[a];
+        if l > 0.0 {
+            if d[a] > half[a] {
+                d[a] -= l;
+            } else if d[a] < -half[a] {
+                d[a] += l;
+            }
+        }
+    }
+    d
+}
+
 impl Neighbours<'_> {
     /// Calls `f(j, x_ij, r_ij)` for every particle j of the set with r_ij < radius, in canonical order.
     /// A row of the neighbour block (dx = −GRID_REACH … GRID_REACH at one dy, dz) is one range of the
@@ -121,11 +141,12 @@ impl Neighbours<'_> {
         let nx = g.n[0] as i32;
         let wraps = self.period[0] > 0.0 && (c[0] < GRID_REACH || c[0] >= nx - GRID_REACH);
         let periodic = self.period != Vec3::ZERO;
+        let half = 0.5 * self.period;
         let mut visit = |first: usize, last: usize| {
             let (s, e) = (self.list.cell_start[first] as usize, self.list.cell_start[last + 1] as usize);
             for (&j, &xj) in self.list.order[s..e].iter().zip(&self.list.pos[s..e]) {
                 let d = xi - xj;
-                let xij = if periodic { min_image(d, self.period) } else { d };
+                let xij = if periodic { min_image_wrapped(d, self.period, half) } else { d };
                 let r2 = xij.length_squared();
                 if r2 < r2max {
                     f(j as usize, xij, r2.sqrt());
@@ -203,7 +224,10 @@ mod tests {
             let nb = Neighbours { grid: &g, list: &list, period, three_d };
             for (i, &xi) in pos.iter().enumerate() {
                 let mut found = Vec::new();
-                nb.for_each(xi, radius, |j, _, _| found.push(j));
+                nb.for_each(xi, radius, |j, xij, _| {
+                    assert_eq!(xij, min_image(xi - pos[j], period), "x_ij of {i}–{j}");
+                    found.push(j);
+                });
                 let mut want: Vec<usize> = (0..pos.len())
                     .filter(|&j| min_image(xi - pos[j], period).length_squared() < radius * radius)
                     .collect();
