@@ -202,6 +202,46 @@ fn advance_is_deterministic_and_independent_of_batching() {
     });
 }
 
+/// Evaluation 0 of every step but a batch's first after a host-side change reuses the liquid's ρ, nˡ,
+/// nˢ, p of the previous step's evaluation 1 (`liquid_density_fresh`): after batches of a falling,
+/// deforming perfused block and after single steps they are bit for bit what a fresh `density_liquid`
+/// gives, and the state equals the CPU's (which reuses them the same way) within the tolerances of
+/// `advance_matches`.
+#[test]
+fn reused_liquid_densities_equal_a_fresh_pass() {
+    use perfuse::sim::gpu::bindings::Slot;
+    use perfuse::sim::gpu::passes::{DENSITY_LIQUID, Stage};
+    gpu_test("reused_liquid_densities_equal_a_fresh_pass", |ctx| {
+        let (mut cpu, mut gpu) = solvers(ctx, &perfused_block(), |_| {});
+        let n = gpu.read_state().expect("state").liquid.len();
+        for (round, steps) in [(0, 40u64), (1, 1), (2, 25)] {
+            if steps == 1 {
+                gpu.step().expect("GPU step");
+            } else {
+                gpu.advance(steps, f64::INFINITY, &mut BatchTotals::default()).expect("GPU advance");
+            }
+            for _ in 0..steps {
+                cpu.step().expect("CPU step");
+            }
+            assert!(gpu.reuses_liquid_density(), "round {round}: the next step would recompute them");
+            let kept: Vec<[u32; 4]> = gpu.read_slot(Slot::LiquidDens, n).expect("read liquid_dens");
+            gpu.run_stages(&[Stage::Pass(DENSITY_LIQUID)]).expect("fresh density_liquid");
+            let fresh: Vec<[u32; 4]> = gpu.read_slot(Slot::LiquidDens, n).expect("read liquid_dens");
+            let differ = kept.iter().zip(&fresh).filter(|(a, b)| a != b).count();
+            assert_eq!(
+                differ, 0,
+                "round {round}: {differ} of {n} liquid particles' (ρ, nˡ, nˢ, p) differ from a fresh pass"
+            );
+            assert!(!gpu.reuses_liquid_density(), "a host-side pass invalidates them");
+        }
+        let (g, c) = (gpu.read_state().expect("readback"), cpu.read_state());
+        let h = cpu.params.k_liquid.h;
+        assert!(g.liquid.vel.iter().any(|v| v.length() > 0.0), "the block moved");
+        assert!(max_vec_diff(&g.liquid.pos, &c.liquid.pos) <= 1e-3 * h, "liquid positions diverged");
+        assert!(max_vec_diff(&g.solid.pos, &c.solid.pos) <= 1e-3 * h, "solid positions diverged");
+    });
+}
+
 /// The CPU twin of batch.wgsl's motion evaluation agrees with `scenario::motion_at` (f64) to f32
 /// rounding, including the t < 0 → rest rule, a Translate window and an Oscillate phase.
 #[test]

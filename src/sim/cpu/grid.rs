@@ -202,10 +202,12 @@ mod tests {
 
     /// The row walk finds exactly the particles a brute-force search finds (minimum image on periodic
     /// axes), each once, for cells of R/2 — interior, clipped borders and wrapped periodic rows, 2-D and
-    /// 3-D, including a particle outside the domain (clamped into a border cell).
+    /// 3-D, with particles on the cell faces and pairs outside the domain (clamped into a border cell).
     #[test]
     fn row_walk_finds_the_brute_force_neighbours() {
-        for (three_d, periodic) in [(true, [false; 3]), (true, [true, false, true]), (false, [true, false, false])] {
+        for (three_d, periodic) in
+            [(true, [false; 3]), (true, [true, false, true]), (false, [true, false, false]), (false, [false; 3])]
+        {
             let ext = Vec3::new(0.06, 0.05, if three_d { 0.04 } else { 0.0 });
             let radius = 0.01f32;
             let cell_min = radius / GRID_REACH as f32;
@@ -218,7 +220,25 @@ mod tests {
             let g = GridDims { n, cell, min: Vec3::ZERO };
             let period = Vec3::from_array(std::array::from_fn(|a| if periodic[a] { ext[a] } else { 0.0 }));
             let mut pos = points(600, ext, three_d, 7);
-            pos.push(Vec3::new(0.02, -0.004, if three_d { 0.02 } else { 0.0 })); // outside, below the non-periodic y
+            // a lattice on the cell faces
+            for k in 0..if three_d { 4 } else { 1 } {
+                for j in 0..5 {
+                    for i in 0..6 {
+                        pos.push(Vec3::new(i as f32 * cell[0], j as f32 * cell[1], k as f32 * cell[2]) * 2.0);
+                    }
+                }
+            }
+            // outside the domain (binned into border cells): a pair below the non-periodic y, a pair beyond
+            // each end of x where x is not periodic, a pair above z
+            let z = if three_d { 0.02 } else { 0.0 };
+            pos.extend([Vec3::new(0.02, -0.004, z), Vec3::new(0.021, -0.009, z)]);
+            if !periodic[0] {
+                pos.extend([Vec3::new(-0.012, 0.01, z), Vec3::new(-0.018, 0.012, z)]);
+                pos.extend([Vec3::new(0.075, 0.03, z), Vec3::new(0.07, 0.033, z)]);
+            }
+            if three_d && !periodic[2] {
+                pos.extend([Vec3::new(0.03, 0.02, 0.052), Vec3::new(0.031, 0.022, 0.058)]);
+            }
             let mut list = CellList::default();
             grid_build(&g, &pos, &mut list);
             let nb = Neighbours { grid: &g, list: &list, period, three_d };

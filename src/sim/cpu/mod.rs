@@ -185,8 +185,8 @@ pub struct CpuSolver {
     grid_generation: u64,
     /// The generation the liquid's ρ, nˡ, nˢ and p were summed on. They depend on positions, masses and
     /// flags only, and the corrector moves nothing, so evaluation 0 of a step finds the sums of the
-    /// previous step's evaluation 1 still exact and reuses them (the GPU recomputes them, to the same
-    /// bits).
+    /// previous step's evaluation 1 still exact and reuses them (as the GPU does: its
+    /// `liquid_density_fresh`).
     liquid_density_generation: Option<u64>,
 }
 

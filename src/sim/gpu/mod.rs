@@ -83,6 +83,12 @@ pub struct GpuSolver {
     batches: u64,
     /// Host time spent pushing and popping the per-batch error scopes [s] (`error_scope_cost`).
     scope_host_s: f64,
+    /// Whether the liquid's ρ, nˡ, nˢ and p on the device are those of the current positions: true
+    /// after a batch (its last step's evaluation 1 summed them, and the corrector and fracture move
+    /// nothing), false after anything the host runs or writes between batches. The first step of a
+    /// batch then skips `density_liquid` in evaluation 0, as every later step of a batch does — the
+    /// CPU's reuse of its evaluation-1 sums (`CpuSolver::liquid_density_generation`).
+    liquid_density_fresh: bool,
     counts: Counts,
     cells: u32,
     t: f64,
@@ -331,6 +337,7 @@ impl GpuSolver {
             timer,
             batches: 0,
             scope_host_s: 0.0,
+            liquid_density_fresh: false,
             counts,
             cells,
             t: st.t,
@@ -536,6 +543,7 @@ impl GpuSolver {
 
     /// Runs `stages` now and waits for them (tests: single passes; apply: boundaries + grids).
     pub fn run_stages(&mut self, stages: &[Stage]) -> Result<(), GpuError> {
+        self.liquid_density_fresh = false;
         let device = self.ctx.device.clone();
         device::ErrorScope::around(&device, "run_stages", || {
             let mut enc =
@@ -548,7 +556,8 @@ impl GpuSolver {
         self.errors.take("run_stages")
     }
 
-    fn upload_params(&self) -> Result<(), GpuError> {
+    fn upload_params(&mut self) -> Result<(), GpuError> {
+        self.liquid_density_fresh = false;
         let gravity_liquid = !(self.damping > 0.0 && self.damping_solid_gravity_only);
         let sp = SimParams::new(&self.params, self.counts, self.gravity, self.damping, gravity_liquid);
         self.ctx.queue.write_buffer(self.buffer(Slot::Params)?, 0, bytemuck::bytes_of(&sp));
@@ -598,8 +607,9 @@ impl GpuSolver {
 
     /// The items of one batched step: `batch_begin`, the first half (indirect), `batch_motion`, the
     /// second half (indirect; the emitters and the count copy after the advance when there are any),
-    /// `batch_end`.
-    fn step_items(&self) -> Vec<Item> {
+    /// `batch_end`. With `reuse_liquid_density` evaluation 0 leaves out `density_liquid` (its sums are
+    /// still those of the current positions: see `liquid_density_fresh`).
+    fn step_items(&self, reuse_liquid_density: bool) -> Vec<Item> {
         let mut out = vec![Item::Dispatch(passes::BATCH_BEGIN, None, Mode::Direct)];
         let push = |stages: &[Stage], out: &mut Vec<Item>| {
             for stage in stages {
@@ -616,7 +626,14 @@ impl GpuSolver {
                 }
             }
         };
-        push(passes::STEP_FIRST, &mut out);
+        let first: Vec<Stage> = passes::STEP_FIRST
+            .iter()
+            .filter(|st| {
+                !(reuse_liquid_density && matches!(st, Stage::Pass(spec) if spec.entry == passes::DENSITY_LIQUID.entry))
+            })
+            .copied()
+            .collect();
+        push(&first, &mut out);
         out.push(Item::Dispatch(passes::BATCH_MOTION, None, Mode::Direct));
         push(passes::STEP_ADVANCE, &mut out);
         if self.emit_active {
@@ -653,12 +670,14 @@ impl GpuSolver {
     /// Encodes `n` batched steps; with `timed`, one compute pass per family segment with timestamps,
     /// returning (step, family) of each segment in query order.
     fn encode_batch(&self, enc: &mut wgpu::CommandEncoder, n: usize, timed: bool) -> Vec<(usize, &'static str)> {
-        let items = self.step_items();
+        // every step after the first finds the liquid densities of the previous step's evaluation 1
+        let (first, rest) = (self.step_items(self.liquid_density_fresh), self.step_items(true));
+        let step_items = |k: usize| if k == 0 { &first } else { &rest };
         let mut segments = Vec::new();
         let timer = self.timer.as_ref().filter(|_| timed);
         let Some(timer) = timer else {
             // As few compute passes as possible: one per run of dispatches between count copies.
-            let all: Vec<&Item> = (0..n).flat_map(|_| items.iter()).collect();
+            let all: Vec<&Item> = (0..n).flat_map(|k| step_items(k).iter()).collect();
             let mut i = 0;
             while i < all.len() {
                 {
@@ -683,6 +702,7 @@ impl GpuSolver {
             Item::SyncCounts => None,
         };
         for k in 0..n {
+            let items = step_items(k);
             let mut i = 0;
             while i < items.len() {
                 let Some(fam) = family(&items[i]) else {
@@ -738,6 +758,12 @@ impl GpuSolver {
         self.scope_host_s += host;
         popped?;
         result
+    }
+
+    /// Whether the next batch's first step reuses the liquid densities on the device (see
+    /// `liquid_density_fresh`; every later step of a batch does).
+    pub fn reuses_liquid_density(&self) -> bool {
+        self.liquid_density_fresh
     }
 
     /// What the per-batch error scopes cost the host: (seconds in push + pop, batches run).
@@ -803,6 +829,8 @@ impl GpuSolver {
         }
         acc.broken_bonds += u64::from(b.broken_ends) / 2;
         self.clock = [b.t_hi, b.t_lo];
+        // the batch's last step ended with evaluation 1 at the current positions
+        self.liquid_density_fresh = b.steps > 0 && b.stop != gpu_types::stop::FAILED;
         if self.emit_active {
             self.counts.liquid = b.n_liquid;
             (self.emitted, self.sunk) = (u64::from(b.emitted), u64::from(b.sunk));
