@@ -225,6 +225,24 @@ fn diverged(step: u64, t: f64, particle: String, reason: String) -> SimError {
     SimError::Diverged { step, t, particle, reason }
 }
 
+/// Whether the pass `entry` is left out for a skeleton held entirely still (`Params::solid_dynamic`
+/// false: every solid particle kinematic, as in the Brinkman channel), as `CpuSolver::evaluate` and
+/// `step_inner` leave its work out: nothing reads the solid's continuity, stress, forces, XSPH velocity,
+/// F or bond breaking there (its particles never move, and `forces_solid`/`forces_xsph_solid` would only
+/// write zero and v, which the buffers hold from the upload). `density_solid` still runs when the
+/// liquid–void attraction (3.4) reads the skeleton's nˡ (a fixed fabric).
+fn static_skeleton_skips(entry: &str, wicking: bool) -> bool {
+    let skipped = [
+        passes::SOLID_STRESS.entry,
+        passes::SOLID_FIT.entry,
+        passes::FORCES_SOLID.entry,
+        passes::FORCES_XSPH_SOLID.entry,
+        passes::SOLID_DEF_GRAD.entry,
+        passes::FRACTURE_APPLY.entry,
+    ];
+    skipped.contains(&entry) || (entry == passes::DENSITY_SOLID.entry && !wicking)
+}
+
 impl GpuSolver {
     /// Acquires the default adapter (see [`device`]) and builds the solver.
     pub fn new(params: Params, g: &GeneratedParticles) -> Result<GpuSolver, SimError> {
@@ -652,6 +670,9 @@ impl GpuSolver {
         }
         // the hourglass fit is not dispatched when the control is off (the CPU does not compute it)
         if spec.entry == passes::SOLID_FIT.entry && self.params.hourglass <= 0.0 {
+            return;
+        }
+        if !self.params.solid_dynamic && static_skeleton_skips(spec.entry, self.params.wicking > 0.0) {
             return;
         }
         let Some(p) = self.pipelines.get(spec.entry) else { return };
