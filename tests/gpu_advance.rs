@@ -242,6 +242,48 @@ fn reused_liquid_densities_equal_a_fresh_pass() {
     });
 }
 
+/// Boundary objects that never move are neither re-placed nor re-binned between batches' steps: the
+/// block with its tool held still, then a command that sets the tool moving (from then on every step
+/// places and bins it again). The GPU in batches follows the CPU, stepped one by one, within the
+/// tolerances of `advance_matches`, boundary poses included.
+#[test]
+fn fixed_boundaries_then_a_commanded_motion_match_cpu() {
+    use perfuse::scenario::Motion;
+    gpu_test("fixed_boundaries_then_a_commanded_motion_match_cpu", |ctx| {
+        let text = common::scenes::PERFUSED_BLOCK_3D.replace("motion: Translate(velocity: (0.0, 0.0, -0.1))", "");
+        let sc = Scenario::from_str_named(&text, "gpu_test_block_fixed.ron").expect("scene");
+        let (mut cpu, mut gpu) = solvers(ctx, &sc, |_| {});
+        let go = Command::SetBoundaryMotion {
+            object: 1,
+            motion: Motion::Translate { velocity: [0.0, 0.0, -0.1], start: 0.0, stop: None },
+        };
+        let b0 = cpu.read_state().boundary.pos;
+        for (round, steps) in [(0, 60u64), (1, 60)] {
+            if round == 1 {
+                cpu.apply(&go).expect("CPU command");
+                gpu.apply(&go).expect("GPU command");
+            }
+            gpu.advance(steps, f64::INFINITY, &mut BatchTotals::default()).expect("GPU advance");
+            for _ in 0..steps {
+                cpu.step().expect("CPU step");
+            }
+            let (g, c) = (gpu.read_state().expect("readback"), cpu.read_state());
+            let h = cpu.params.k_liquid.h;
+            let (d_l, d_s) = (max_vec_diff(&g.liquid.pos, &c.liquid.pos), max_vec_diff(&g.solid.pos, &c.solid.pos));
+            let d_b = max_vec_diff(&g.boundary.pos, &c.boundary.pos);
+            eprintln!(
+                "round {round}: max |Δx| liquid {:.3e} h, solid {:.3e} h, boundary {d_b:.3e} m",
+                d_l / h,
+                d_s / h
+            );
+            assert!(d_l <= 1e-3 * h && d_s <= 1e-3 * h, "round {round}: positions diverged");
+            assert!(d_b <= 1e-3 * h, "round {round}: boundary poses diverged");
+            let moved = max_vec_diff(&c.boundary.pos, &b0);
+            assert_eq!(moved > 0.0, round == 1, "round {round}: the tool moved {moved} m");
+        }
+    });
+}
+
 /// The CPU twin of batch.wgsl's motion evaluation agrees with `scenario::motion_at` (f64) to f32
 /// rounding, including the t < 0 → rest rule, a Translate window and an Oscillate phase.
 #[test]

@@ -657,7 +657,23 @@ impl GpuSolver {
         if self.emit_active {
             push(passes::STEP_EMIT, &mut out);
         }
-        push(passes::STEP_SECOND, &mut out);
+        // Boundary objects that never move (every motion Static: walls, plates) keep the poses and the
+        // cell list that the last PLACE_AND_BIN gave them; a command that sets a motion re-places them and
+        // the next batch places and bins them every step again.
+        let fixed = self.objects.iter().all(|o| matches!(o.motion, Motion::Static));
+        let second: Vec<Stage> = passes::STEP_SECOND
+            .iter()
+            .filter(|st| {
+                let boundary_stage = match st {
+                    Stage::Pass(spec) => spec.entry == passes::INTEGRATE_BOUNDARY.entry,
+                    Stage::Grid(set) => *set == GridOf::Boundary,
+                    Stage::SyncCounts => false,
+                };
+                !(fixed && boundary_stage)
+            })
+            .copied()
+            .collect();
+        push(&second, &mut out);
         out.push(Item::Dispatch(passes::BATCH_END, None, Mode::Direct));
         out
     }
