@@ -4,7 +4,8 @@
 //! `GpuContext::new` (lavapipe here) with batched stepping (`Simulation::advance`); reports and plots go
 //! to `target/test-artifacts/gpu-validation/<case>/`. Serialised with each other (one device at a
 //! time). `PERFUSE_SKIP_GPU_TESTS=1` skips them loudly, as the other GPU tests. On lavapipe with 2
-//! cores they take about 44 s (Poiseuille), 127 s (Brinkman) and 162 s (hydrostatic).
+//! cores they took 33 s (Poiseuille), 81 s (Brinkman) and 87 s (hydrostatic) on 2026-12-02, each with a
+//! CPU validation run beside it.
 
 mod common;
 
