@@ -11,6 +11,7 @@ pub mod frames;
 pub mod hemorrhage;
 pub mod plot;
 pub mod projectile;
+pub mod relaxation;
 pub mod scalpel;
 pub mod session;
 pub mod syringe;

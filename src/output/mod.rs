@@ -66,6 +66,8 @@ pub struct Summary {
     pub solid_fragments: usize,
     /// Liquid particles outside the solid's body or capsule (nˢ < 0.05 at the particle).
     pub liquid_outside: usize,
+    /// With a `relaxation` (SPEC §7.5): speeds, top-face sag and liquid outside at t = 0, after it.
+    pub relaxation: Option<crate::analysis::relaxation::RelaxationReport>,
     pub particles_outside_domain: usize,
     pub diverged: bool,
     pub divergence: Option<String>,
@@ -236,10 +238,17 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     let origin = sim.params().origin;
     let bar = if opts.progress { Some(progress_bar()) } else { None };
     let mut divergence = None;
+    let relaxing = scenario.relaxation.as_ref().filter(|r| r.duration > 0.0);
+    let unrelaxed = if relaxing.is_some() { Some(sim.read_state()?) } else { None };
     if let Err(e) = sim.relax(|_| {}) {
         divergence = Some(e.to_string());
     }
     let s0 = sim.read_state()?;
+    let relaxation = relaxing.zip(unrelaxed.as_ref()).map(|(r, before)| {
+        let g = scenario.gravity;
+        let g = glam::Vec3::new(g[0] as f32, g[1] as f32, g[2] as f32);
+        crate::analysis::relaxation::measure(before, &s0, r.duration, g, sim.params().dx_solid)
+    });
     // The patient (issue 7): sampled with every state read back (frames, probes, the end).
     let rho0_l = scenario.liquid.as_ref().map_or(1000.0, |l| l.density);
     let mut patient = scenario.physiology.as_ref().map(crate::sim::physiology::Patient::new).transpose()?;
@@ -467,6 +476,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         solid_components: components.iter().filter(|&&c| c >= crate::sim::state::MIN_COMPONENT).count(),
         solid_fragments: components.iter().filter(|&&c| c < crate::sim::state::MIN_COMPONENT).count(),
         liquid_outside: fin.liquid_outside(),
+        relaxation,
         particles_outside_domain: count_outside(&fin, &sim),
         diverged: divergence.is_some(),
         divergence,
