@@ -118,12 +118,17 @@ pub fn run(
     let s0 = sim.read_state()?;
     // the source runs while the specimen relaxes (at t < 0); SPEC counts from t = 0
     let relaxed_totals = sim.emit_totals()?;
-    // SPEC §7.5's relaxation invariants: the top face's mean sag and the largest solid speed
-    let z_top = unrelaxed.solid.pos.iter().map(|x| x.z).fold(f32::MIN, f32::max);
-    let top_face: Vec<usize> =
-        (0..unrelaxed.solid.len()).filter(|&i| unrelaxed.solid.pos[i].z > z_top - 0.5 * p.dx_solid).collect();
-    let sag = top_face.iter().map(|&i| f64::from(unrelaxed.solid.pos[i].z - s0.solid.pos[i].z)).sum::<f64>()
-        / top_face.len().max(1) as f64;
+    // SPEC §7.5's relaxation invariants: the top face's mean sag and the largest solid speed (the
+    // figures of summary.json's `relaxation` block)
+    let g = sc.gravity;
+    let duration = sc.relaxation.as_ref().map_or(0.0, |r| r.duration);
+    let relaxed = super::relaxation::measure(
+        &unrelaxed,
+        &s0,
+        duration,
+        glam::Vec3::new(g[0] as f32, g[1] as f32, g[2] as f32),
+        p.dx_solid,
+    );
     let n_l0 = s0.liquid.len();
     let mut out = ProjectileOutcome {
         resolution: format!(
@@ -133,8 +138,8 @@ pub fn run(
             p.dx_solid * 1e3,
             r_p * 1e3
         ),
-        relaxed_vmax: s0.solid.vel.iter().map(|v| f64::from(v.length())).fold(0.0, f64::max),
-        relaxed_sag: sag,
+        relaxed_vmax: relaxed.solid_max_speed_m_per_s,
+        relaxed_sag: relaxed.top_sag_m.unwrap_or(0.0),
         relaxed_broken: s0.broken_bonds(),
         tunnel_initial: (0..s0.solid.len())
             .filter(|&i| {
