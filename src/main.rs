@@ -53,6 +53,25 @@ enum Backend {
     Gpu,
 }
 
+/// `perfuse dmd --amplitudes`: how the mode amplitudes a_j are fitted.
+#[derive(Clone, Copy, ValueEnum, Debug)]
+enum Amplitudes {
+    /// a = argmin ‖Φa − x_1‖ (the thesis's initial value problem, §5.2).
+    Initial,
+    /// Least squares over every snapshot of the record with the stabilised eigenvalues (optimal
+    /// amplitudes, Jovanović, Schmid & Nichols 2014; not in the thesis).
+    All,
+}
+
+impl From<Amplitudes> for perfuse::analysis::dmd::AmplitudeFit {
+    fn from(a: Amplitudes) -> Self {
+        match a {
+            Amplitudes::Initial => Self::InitialCondition,
+            Amplitudes::All => Self::AllSnapshots,
+        }
+    }
+}
+
 impl From<Backend> for BackendKind {
     fn from(b: Backend) -> BackendKind {
         match b {
@@ -172,6 +191,10 @@ enum Cmd {
         /// Time between frames [s] (default: summary.json's frame_interval_s).
         #[arg(long)]
         frame_interval: Option<f64>,
+        /// Amplitude fit: `initial` (from the first snapshot, thesis §5.2) or `all` (least squares over
+        /// the whole record, stabilised; spreads the error of a nonlinear record over the window).
+        #[arg(long, value_enum, default_value = "initial")]
+        amplitudes: Amplitudes,
         #[arg(long, default_value = "out/dmd")]
         out: PathBuf,
     },
@@ -472,7 +495,7 @@ fn real_main() -> Result<()> {
     let cli = Cli::parse();
     let Some(command) = cli.command else { return viewer(&cli) };
     match command {
-        Cmd::Dmd { frames, rank, energy, velocities, frame_interval, out } => {
+        Cmd::Dmd { frames, rank, energy, velocities, frame_interval, amplitudes, out } => {
             use perfuse::analysis::dmd;
             let dt = match frame_interval {
                 Some(dt) => dt,
@@ -492,8 +515,7 @@ fn real_main() -> Result<()> {
                 bail!("frame interval {dt} s must be positive");
             }
             let sel = dmd::rank_selection_from_cli(rank, energy)?;
-            let report =
-                dmd::run_dmd(&frames, dt, dmd::FrameFields { velocities }, sel, dmd::AmplitudeFit::default(), &out)?;
+            let report = dmd::run_dmd(&frames, dt, dmd::FrameFields { velocities }, sel, amplitudes.into(), &out)?;
             println!(
                 "DMD of {}: rank {}, dominant frequency {}, reconstruction error {:.3e}; wrote dmd.json and plots to {}",
                 frames.display(),
