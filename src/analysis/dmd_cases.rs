@@ -2,7 +2,7 @@
 //! as one `perfuse validate --case dmd`: each scenario runs headless with its frames every 0.01 s, exact
 //! DMD (5.1)–(5.6) is fitted at full rank on the particle positions, reconstructed with the §5.3.1
 //! stabilisation (5.7), and the acceptance rows of both sections (and issue 9's 2 % on the dominant
-//! frequency) are reported. Opt-in: the standard records (50 s and 10 s) take about an hour on a CPU, the
+//! frequency) are reported. Opt-in: the standard records (50 s and 10 s) take 42 min on two CPU cores, the
 //! `--quick` ones (20 s and 4 s) about half an hour.
 //!
 //! Each record is judged twice, on the same modes and eigenvalues: with the thesis's amplitudes, fitted to
