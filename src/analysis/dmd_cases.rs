@@ -88,9 +88,9 @@ pub fn summarise(model: &DmdModel, s: &Snapshots, sv: &[f64], judged_s: f64) -> 
     })
 }
 
-/// The amplitude-dependent figures of one record with the optimal amplitudes (see the module documentation).
+/// The amplitude-dependent figures of one record under one amplitude fit (see the module documentation).
 #[derive(Clone, Debug)]
-pub struct OptimalFigures {
+pub struct AmplitudeFigures {
     /// |f| of the largest-amplitude oscillating mode [Hz].
     pub dominant_hz: Option<f64>,
     /// Smallest |f − FORCING_HZ| among the ten largest modes other than the mean mode [Hz].
@@ -99,9 +99,9 @@ pub struct OptimalFigures {
     pub max_rms_position_error_m: f64,
 }
 
-impl From<&DmdCase> for OptimalFigures {
+impl From<&DmdCase> for AmplitudeFigures {
     fn from(c: &DmdCase) -> Self {
-        OptimalFigures {
+        AmplitudeFigures {
             dominant_hz: c.dominant_hz,
             top10_nearest_forcing_hz: c.top10_nearest_forcing_hz,
             max_rms_position_error_m: c.max_rms_position_error_m,
@@ -109,49 +109,45 @@ impl From<&DmdCase> for OptimalFigures {
     }
 }
 
-/// Rows of SPEC §7.13 and issue 9 for the oscillating wall; `optimal` adds the amplitude-dependent rows
-/// with the optimal amplitudes.
-pub fn wall_rows(c: &DmdCase, optimal: Option<&OptimalFigures>, wall: f64) -> Vec<CaseResult> {
-    let (n, r) =
-        ("dmd_oscillating_wall", format!("{} snapshots over {:.0} s, r = {}", c.snapshots, c.record_s, c.rank));
-    let rel = |f: Option<f64>| f.map_or(f64::NAN, |f| (f - FORCING_HZ).abs() / FORCING_HZ);
-    let mut rows = vec![
-        at_most(n, &r, "dominant_frequency_rel_error", rel(c.dominant_hz), 0.02, wall),
+/// The three amplitude-dependent rows of the oscillating wall, metric names ending in `suffix`.
+fn wall_amplitude_rows(n: &str, r: &str, f: &AmplitudeFigures, suffix: &str, wall: f64) -> [CaseResult; 3] {
+    let rel = f.dominant_hz.map_or(f64::NAN, |f| (f - FORCING_HZ).abs() / FORCING_HZ);
+    [
+        at_most(n, r, &format!("dominant_frequency_rel_error{suffix}"), rel, 0.02, wall),
         at_most(
             n,
-            &r,
-            "top10_nearest_forcing_abs_error_hz",
-            c.top10_nearest_forcing_hz.unwrap_or(f64::NAN),
+            r,
+            &format!("top10_nearest_forcing_abs_error_hz{suffix}"),
+            f.top10_nearest_forcing_hz.unwrap_or(f64::NAN),
             0.02,
             wall,
         ),
-        at_most(n, &r, "max_rms_position_error_over_width", c.max_rms_position_error_m / WALL_TANK_WIDTH, 0.05, wall),
+        at_most(
+            n,
+            r,
+            &format!("max_rms_position_error_over_width{suffix}"),
+            f.max_rms_position_error_m / WALL_TANK_WIDTH,
+            0.05,
+            wall,
+        ),
+    ]
+}
+
+/// Rows of SPEC §7.13 and issue 9 for the oscillating wall; `optimal` adds the amplitude-dependent rows
+/// with the optimal amplitudes.
+pub fn wall_rows(c: &DmdCase, optimal: Option<&AmplitudeFigures>, wall: f64) -> Vec<CaseResult> {
+    let (n, r) =
+        ("dmd_oscillating_wall", format!("{} snapshots over {:.0} s, r = {}", c.snapshots, c.record_s, c.rank));
+    let mut rows = wall_amplitude_rows(n, &r, &AmplitudeFigures::from(c), "", wall).to_vec();
+    rows.extend([
         at_most(n, &r, "mean_mode_abs_lambda_minus_1", c.mean_mode_distance, 1e-3, wall),
         at_most(n, &r, "max_stabilised_abs_mu_minus_1", c.stabilised_excess, 1e-12, wall),
         reported(n, &r, "dominant_frequency_hz", c.dominant_hz.unwrap_or(f64::NAN), wall),
         reported(n, &r, "energy_at_rank_500", c.energy_at_500, wall),
         reported(n, &r, "fraction_abs_lambda_below_0.99", c.fraction_inside_099, wall),
-    ];
+    ]);
     if let Some(o) = optimal {
-        rows.extend([
-            at_most(n, &r, "dominant_frequency_rel_error_optimal_amplitudes", rel(o.dominant_hz), 0.02, wall),
-            at_most(
-                n,
-                &r,
-                "top10_nearest_forcing_abs_error_hz_optimal_amplitudes",
-                o.top10_nearest_forcing_hz.unwrap_or(f64::NAN),
-                0.02,
-                wall,
-            ),
-            at_most(
-                n,
-                &r,
-                "max_rms_position_error_over_width_optimal_amplitudes",
-                o.max_rms_position_error_m / WALL_TANK_WIDTH,
-                0.05,
-                wall,
-            ),
-        ]);
+        rows.extend(wall_amplitude_rows(n, &r, o, "_optimal_amplitudes", wall));
     }
     rows
 }
@@ -160,7 +156,7 @@ pub fn wall_rows(c: &DmdCase, optimal: Option<&OptimalFigures>, wall: f64) -> Ve
 /// `optimal` adds the reconstruction row with the optimal amplitudes.
 pub fn dam_rows(
     c: &DmdCase,
-    optimal: Option<&OptimalFigures>,
+    optimal: Option<&AmplitudeFigures>,
     wall_case: Option<&DmdCase>,
     wall: f64,
 ) -> Vec<CaseResult> {
@@ -206,7 +202,7 @@ fn run_case(
     out: &Path,
     tag: &str,
     progress: bool,
-) -> Result<(DmdCase, OptimalFigures), ValidationError> {
+) -> Result<(DmdCase, AmplitudeFigures), ValidationError> {
     let sc = Scenario::from_str_with_overrides(text, origin, &[])?;
     let frame_interval = sc.output.frame_interval.unwrap_or(0.01);
     let frames = out.join(format!("{tag}_frames"));
@@ -245,7 +241,7 @@ fn run_case(
     let opt_dir = out.join(format!("{tag}_dmd_optimal"));
     dmd::write_outputs_with(&d, &optimal, &s, &opt_dir, &ranks).map_err(|e| io(&e, &opt_dir))?;
     let optimal = summarise(&optimal, &s, d.singular_values(), judged_s).map_err(|e| io(&e, &opt_dir))?;
-    Ok((thesis, OptimalFigures::from(&optimal)))
+    Ok((thesis, AmplitudeFigures::from(&optimal)))
 }
 
 /// SPEC §7.13 and §7.14: the standard records (50 s and 10 s) or, with `quick`, the judged ten periods of
@@ -310,7 +306,7 @@ mod tests {
         let c = summarise(&model, &s, d.singular_values(), WALL_JUDGED_S).expect("summary");
         let mut optimal = model.clone();
         optimal.refit_amplitudes(&s, true).expect("refit");
-        let o = OptimalFigures::from(&summarise(&optimal, &s, d.singular_values(), WALL_JUDGED_S).expect("summary"));
+        let o = AmplitudeFigures::from(&summarise(&optimal, &s, d.singular_values(), WALL_JUDGED_S).expect("summary"));
         let rows = wall_rows(&c, Some(&o), 0.0);
         assert_eq!(rows.iter().filter(|r| r.metric.ends_with("_optimal_amplitudes")).count(), 3, "{rows:?}");
         for r in &rows {
@@ -337,7 +333,7 @@ mod tests {
             max_rms_position_error_m: 0.06,
             energy_at_500: 0.99,
         };
-        let optimal = OptimalFigures {
+        let optimal = AmplitudeFigures {
             dominant_hz: Some(0.499),
             top10_nearest_forcing_hz: Some(0.03),
             max_rms_position_error_m: 0.01,
@@ -351,7 +347,7 @@ mod tests {
         assert!(!get("top10_nearest_forcing_abs_error_hz_optimal_amplitudes"), "0.03 Hz > 0.02 Hz");
         assert!(get("max_rms_position_error_over_width_optimal_amplitudes"), "1 cm ≤ 5 % of 1 m");
         let dam = DmdCase { fraction_inside_099: 0.05, max_rms_position_error_m: 0.3, ..base.clone() };
-        let far = OptimalFigures { max_rms_position_error_m: 0.6, ..optimal };
+        let far = AmplitudeFigures { max_rms_position_error_m: 0.6, ..optimal };
         let rows = dam_rows(&dam, Some(&far), Some(&base), 1.0);
         let get = |m: &str| rows.iter().find(|r| r.metric == m).expect(m).pass;
         assert!(get("max_rms_position_error_over_length"), "0.3 m ≤ 5 % of 10.3 m");
