@@ -16,6 +16,13 @@ pub struct RelaxationReport {
     /// Largest and mean speed of the free solid particles (kinematic ones left out) [m/s].
     pub solid_max_speed_m_per_s: f64,
     pub solid_mean_speed_m_per_s: f64,
+    /// Mean velocity of the free solid particles [m/s]: the organ's bulk motion. Near the mean speed
+    /// when the whole body is still settling (falling, sliding, rocking on its supports); near zero
+    /// when what moves is particles jittering about their places.
+    pub solid_mean_velocity_m_per_s: [f64; 3],
+    /// Bonds broken while relaxing (Alg. 2, pairs): the generated connectivity less the intact bonds
+    /// at t = 0. `summary.json`'s top-level `broken_bonds` counts from t = 0 on.
+    pub broken_bonds: u64,
     /// Largest and mean speed of the liquid particles [m/s].
     pub liquid_max_speed_m_per_s: f64,
     pub liquid_mean_speed_m_per_s: f64,
@@ -45,6 +52,14 @@ pub fn measure(before: &State, after: &State, duration_s: f64, gravity: Vec3, dx
     };
     let (solid_max, solid_mean) =
         speeds(&mut after.solid.vel.iter().zip(&free_now).filter(|(_, f)| **f).map(|(v, _)| f64::from(v.length())));
+    let (mut bulk, mut n_free) = ([0.0f64; 3], 0usize);
+    for (v, _) in after.solid.vel.iter().zip(&free_now).filter(|(_, f)| **f) {
+        for a in 0..3 {
+            bulk[a] += f64::from(v[a]);
+        }
+        n_free += 1;
+    }
+    let bulk = bulk.map(|b| if n_free > 0 { b / n_free as f64 } else { 0.0 });
     let (liquid_max, liquid_mean) = speeds(&mut after.liquid.vel.iter().map(|v| f64::from(v.length())));
     let top_sag_m = (gravity.length() > 0.0 && before.solid.len() == after.solid.len() && !before.solid.is_empty())
         .then(|| {
@@ -68,6 +83,8 @@ pub fn measure(before: &State, after: &State, duration_s: f64, gravity: Vec3, dx
         duration_s,
         solid_max_speed_m_per_s: solid_max,
         solid_mean_speed_m_per_s: solid_mean,
+        solid_mean_velocity_m_per_s: bulk,
+        broken_bonds: after.broken_bonds(),
         liquid_max_speed_m_per_s: liquid_max,
         liquid_mean_speed_m_per_s: liquid_mean,
         top_sag_m,
@@ -94,8 +111,8 @@ mod tests {
     }
 
     /// A column of three solid particles, the top one kinematic: the sag is the top free particle's
-    /// drop along −ĝ, the fastest free particle counts and the kinematic one does not; one liquid
-    /// particle lies outside the body.
+    /// drop along −ĝ, the fastest free particle counts and the kinematic one does not, and so for the
+    /// bulk velocity; one bond broke; one liquid particle lies outside the body.
     #[test]
     fn relaxation_figures_of_a_known_state() {
         let dx = 0.01;
@@ -108,6 +125,9 @@ mod tests {
         after.solid = phase(&x1, &v1, 0.6);
         after.liquid = phase(&[Vec3::ZERO, Vec3::X], &[Vec3::new(0.0, 2e-3, 0.0), Vec3::ZERO], 0.6);
         after.liquid.n_s[1] = 0.0;
+        // a chain 0–1–2 whose bond 0–1 broke while relaxing
+        after.solid_extra.bonds_initial = vec![1, 2, 1];
+        after.solid_extra.bonds = vec![0, 1, 1];
         let r = measure(&before, &after, 0.3, Vec3::new(0.0, 0.0, -9.81), dx);
         assert_eq!(r.duration_s, 0.3);
         assert!((r.solid_max_speed_m_per_s - 3e-3).abs() < 1e-9, "{r:?}");
@@ -116,6 +136,13 @@ mod tests {
         let sag = r.top_sag_m.expect("gravity and a solid");
         assert!((sag - 0.2 * f64::from(dx)).abs() < 1e-7, "sag {sag}");
         assert_eq!(r.liquid_outside, 1);
+        // the free particles' mean velocity, the kinematic one left out
+        let bulk = r.solid_mean_velocity_m_per_s;
+        assert!(
+            bulk[0].abs() < 1e-12 && (bulk[1] - 1.5e-3).abs() < 1e-9 && (bulk[2] - 0.5e-3).abs() < 1e-9,
+            "{bulk:?}"
+        );
+        assert_eq!(r.broken_bonds, 1);
         // gravity along −x: "up" is +x, every free particle is at the top, none moved along x
         let r = measure(&before, &after, 0.3, Vec3::new(-9.81, 0.0, 0.0), dx);
         assert_eq!(r.top_sag_m, Some(0.0));

@@ -7,7 +7,9 @@
 //! Definitions (documented in the README):
 //! - loss rate at t: (lost(t) − lost(t − W)) / W over the window W = [`RATE_WINDOW_S`] (at least one
 //!   heartbeat, so the pulsatile loss is averaged over a beat), from the samples at or before t − W;
-//! - first cut: the first sample with a broken bond;
+//! - the session starts at t = 0: samples of the relaxation (t < 0) are skipped, and the bonds already
+//!   broken at the first sample are the baseline (the settling organ's breaks are not the trainee's cuts);
+//! - first cut: the first sample with a bond broken beyond that baseline;
 //! - hemostasis: after the first cut the loss rate rose above [`HEMOSTASIS_ML_MIN`] (the wound bled),
 //!   then fell to or below it and stayed there to the end of the session; a re-bleed cancels it.
 
@@ -47,6 +49,8 @@ pub struct SessionMetrics {
     window: VecDeque<(f64, f64)>,
     report: SessionReport,
     last_t: f64,
+    /// Bonds broken at the session's first sample (t ≥ 0).
+    broken_at_start: Option<u64>,
 }
 
 impl Default for SessionMetrics {
@@ -59,6 +63,7 @@ impl Default for SessionMetrics {
                 ..Default::default()
             },
             last_t: f64::NEG_INFINITY,
+            broken_at_start: None,
         }
     }
 }
@@ -74,6 +79,10 @@ impl SessionMetrics {
             *self = SessionMetrics::default();
         }
         self.last_t = t;
+        if t < 0.0 {
+            return;
+        }
+        let broken_bonds = broken_bonds.saturating_sub(*self.broken_at_start.get_or_insert(broken_bonds));
         let r = &mut self.report;
         r.blood_lost_ml = lost_ml;
         r.broken_bonds = broken_bonds;
@@ -140,7 +149,7 @@ mod tests {
             let t = k as f64 * 0.05;
             // bleeds 1–3 s and 6–8 s at 12 mL/min
             let lost = 0.2 * ((t.clamp(1.0, 3.0) - 1.0) + (t.clamp(6.0, 8.0) - 6.0));
-            m.push(t, lost, 5);
+            m.push(t, lost, if t >= 0.5 { 5 } else { 0 });
             if (5.0..5.01).contains(&t) {
                 assert!(m.report().hemostasis_s.is_some(), "stopped after the first bleed");
             }
@@ -156,5 +165,31 @@ mod tests {
         assert!((no_cut.report().peak_loss_rate_ml_min - 18.0).abs() < 1e-6);
         m.push(1.0, 0.0, 0);
         assert_eq!(m.report().peak_loss_rate_ml_min, 0.0);
+    }
+
+    /// The session starts at t = 0: the relaxation's samples (t < 0) are skipped and the bonds the
+    /// settling organ broke before the first sample are no cut; a cut is a bond broken after it.
+    #[test]
+    fn the_relaxation_is_not_part_of_the_session() {
+        let mut m = SessionMetrics::default();
+        for k in -20..=100 {
+            let t = k as f64 * 0.05;
+            // 30 bonds broke while relaxing (t < 0), 15 more at the cut at 2 s; bleeds 2–3 s
+            let broken = if t < -0.5 {
+                10
+            } else if t < 2.0 {
+                30
+            } else {
+                45
+            };
+            m.push(t, 0.5 * (t.clamp(2.0, 3.0) - 2.0), broken);
+            if (1.0..1.01).contains(&t) {
+                assert_eq!((m.report().first_cut_s, m.report().broken_bonds), (None, 0), "no cut yet");
+            }
+        }
+        let r = m.report();
+        assert_eq!(r.first_cut_s.map(|c| (c * 100.0).round()), Some(200.0), "{r:?}");
+        assert_eq!(r.broken_bonds, 15);
+        assert!(r.bled && r.hemostasis_s.is_some());
     }
 }

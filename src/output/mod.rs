@@ -58,7 +58,7 @@ pub struct Summary {
     pub dt_limited_by: std::collections::BTreeMap<String, u64>,
     pub mass: PhaseMass,
     pub particles: ParticleCounts,
-    /// Bonds broken since t = 0 (pairs, Alg. 2).
+    /// Bonds broken since t = 0 (pairs, Alg. 2); those the relaxation broke are `relaxation.broken_bonds`.
     pub broken_bonds: u64,
     /// Connected components of the solid by intact bonds with at least 8 particles, kinematic
     /// (fixed) particles left out; `solid_fragments` counts the smaller pieces.
@@ -253,17 +253,20 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     let rho0_l = scenario.liquid.as_ref().map_or(1000.0, |l| l.density);
     let mut patient = scenario.physiology.as_ref().map(crate::sim::physiology::Patient::new).transpose()?;
     let mut vitals_rows: Vec<VitalsSample> = Vec::new();
+    // Bonds are counted from t = 0: what the relaxation broke is in the `relaxation` block.
+    let broken_at_zero = s0.broken_bonds();
     fn sample_patient(
         patient: &mut Option<crate::sim::physiology::Patient>,
         st: &State,
         rho0_l: f64,
+        broken_at_zero: u64,
         rows: &mut Vec<VitalsSample>,
     ) {
         if let Some(p) = patient {
             let vitals = p.update(st, rho0_l);
             rows.push(VitalsSample {
                 t_s: st.t,
-                broken_bonds: st.broken_bonds(),
+                broken_bonds: st.broken_bonds().saturating_sub(broken_at_zero),
                 hepatic_inflow_ml_s: p.model.hepatic_flow_m3_s() * 1e6,
                 arterial_pressure_mmhg: p.model.arterial_pressure_mmhg(),
                 vitals,
@@ -285,7 +288,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
         }
         Ok::<(), crate::sim::SimError>(())
     };
-    sample_patient(&mut patient, &s0, rho0_l, &mut vitals_rows);
+    sample_patient(&mut patient, &s0, rho0_l, broken_at_zero, &mut vitals_rows);
     let d = scenario.dimensions;
     let probes: Vec<ProbeSel> = scenario
         .output
@@ -351,7 +354,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
                 let t = adv.t;
                 if t >= next_frame - 1e-12 || t >= next_probe - 1e-12 {
                     let st = sim.read_state()?;
-                    sample_patient(&mut patient, &st, rho0_l, &mut vitals_rows);
+                    sample_patient(&mut patient, &st, rho0_l, broken_at_zero, &mut vitals_rows);
                     if t >= next_probe - 1e-12 {
                         probe_rows.push((st.t, probes.iter().map(|p| probe_value(&st, p, origin)).collect()));
                         while next_probe <= t {
@@ -388,7 +391,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     let wall_run = run_start.elapsed().as_secs_f64();
     let fin = sim.read_state()?;
     if vitals_rows.last().is_none_or(|r| fin.t > r.t_s) {
-        sample_patient(&mut patient, &fin, rho0_l, &mut vitals_rows);
+        sample_patient(&mut patient, &fin, rho0_l, broken_at_zero, &mut vitals_rows);
     }
     let (model_hepatic, lost_sim) = patient.as_ref().map_or((None, None), |p| {
         // the model runs ahead of the organ when it drives the inflow: its integral at the end time
@@ -472,7 +475,7 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
             solid: fin.solid.len(),
             boundary: fin.boundary.pos.len(),
         },
-        broken_bonds: fin.broken_bonds(),
+        broken_bonds: fin.broken_bonds().saturating_sub(broken_at_zero),
         solid_components: components.iter().filter(|&&c| c >= crate::sim::state::MIN_COMPONENT).count(),
         solid_fragments: components.iter().filter(|&&c| c < crate::sim::state::MIN_COMPONENT).count(),
         liquid_outside: fin.liquid_outside(),
