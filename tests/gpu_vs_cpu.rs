@@ -540,3 +540,57 @@ fn wall_friction_matches_cpu() {
         assert!(d_s <= 1e-3 * h, "positions diverged");
     });
 }
+
+/// A perfused block resting on a bed moulded to its underside (`Boundary::mould`), whose box reaches
+/// up through the block's lower half: both back-ends keep the block where it is (a moulded object has
+/// no contact projection — with its box's, the lower half would be thrown out of it) and step alike.
+#[test]
+fn moulded_bed_matches_cpu() {
+    gpu_test("moulded_bed_matches_cpu", |ctx| {
+        let sc = perfuse::scenario::Scenario::from_str_named(
+            r#"Scenario(
+            name: "bed", dimensions: 3,
+            domain: Domain(min: (-0.03, -0.03, -0.03), max: (0.03, 0.03, 0.04)),
+            gravity: (0.0, 0.0, -9.81),
+            liquid: Some(Liquid(density: 1000.0, viscosity: 0.01, stiffness: Some(1e4))),
+            solid: Some(Solid(density: 1000.0, c10: 1e3, c01: 0.0, k_s: 1e4, n_sat: 0.6, k_sat: 1e4, friction: 1e5)),
+            numerics: Numerics(dx_solid: Some(0.004), dx_liquid: Some(0.004)),
+            particles: [ PerfusedBlock(min: (-0.01, -0.01, 0.0), max: (0.01, 0.01, 0.02), solid_fraction: 0.6, liquid_fraction: 0.4) ],
+            boundaries: [ Boundary(name: "bed", shape: Box(min: (-0.02, -0.02, -0.02), max: (0.02, 0.02, 0.01)),
+                                   mould: Some(Mould(clearance: 0.002, depth: 0.012))) ],
+            duration: 0.1,
+        )"#,
+            "bed.ron",
+        )
+        .expect("valid");
+        let g = generate(&sc);
+        // three layers under the block's 2 × 2 cm footprint (the bed's lattice, offset by half a
+        // spacing from the block's, has 6 × 6 columns there, the outer ones under its faces at ±1 cm)
+        assert_eq!(g.boundary_pos.len(), 3 * 36, "bed particles");
+        assert!(
+            g.boundary_pos.iter().all(|p| p[0].abs() <= 0.0101 && p[1].abs() <= 0.0101 && p[2] < 0.0),
+            "beside the block"
+        );
+        let mut cpu = solver_for(&sc);
+        let mut gpu = gpu_from(ctx, &cpu);
+        for _ in 0..300 {
+            gpu.step().unwrap();
+            cpu.step().unwrap();
+        }
+        let (gs, cs) = (gpu.read_state().unwrap(), cpu.read_state());
+        let h = cpu.params.k_solid.h;
+        let d_x = max_vec_diff(&gs.liquid.pos, &cs.liquid.pos).max(max_vec_diff(&gs.solid.pos, &cs.solid.pos));
+        let world_z = |s: &perfuse::sim::State| {
+            s.solid.pos.iter().map(|x| cpu.params.to_world(*x)[2]).fold(f64::INFINITY, f64::min)
+        };
+        let (zg, zc) = (world_z(&gs), world_z(&cs));
+        eprintln!(
+            "moulded bed, 300 steps (t = {:.3e} s): max |Δx| {d_x:.3e} m ({:.3e} h); lowest solid z {zc:.4} (GPU {zg:.4}) m",
+            cs.t,
+            d_x / h
+        );
+        assert!(d_x <= 1e-3 * h, "positions diverged");
+        // resting on the bed: inside the bed's box (no projection out of it), above the bed's top layer
+        assert!((-0.002..0.01).contains(&zc) && (-0.002..0.01).contains(&zg), "lowest solid particle at {zc} / {zg} m");
+    });
+}

@@ -234,6 +234,32 @@ fn shipped_scenarios_are_valid() {
     assert!(n >= 5, "expected the validation scenarios, found {n}");
 }
 
+/// The liver's moulded bed (`Boundary::mould`): a negative clearance, a bed without gravity (no
+/// "down" to mould under) and a moving bed are refused, each naming the field.
+#[test]
+fn moulded_bed_errors() {
+    let liver_path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenarios/liver.ron");
+    let liver = std::fs::read_to_string(liver_path).expect("liver.ron");
+    let bed = "shape: Box(min: (-0.105, -0.0395, -0.07), max: (0.105, 0.0, 0.07)),";
+    let cases: [(&str, &str, &str); 4] = [
+        ("Mould(clearance: 0.0025", "Mould(clearance: -0.0025", "boundaries[4].mould.clearance"),
+        ("depth: 0.015))", "depth: NaN))", "boundaries[4].mould.depth"),
+        ("gravity: (0.0, -9.81, 0.0)", "gravity: (0.0, 0.0, 0.0)", "boundaries[4].mould"),
+        (
+            bed,
+            "shape: Box(min: (-0.105, -0.0395, -0.07), max: (0.105, 0.0, 0.07)), motion: Translate(velocity: (0.0, 0.01, 0.0)),",
+            "boundaries[4].mould",
+        ),
+    ];
+    for (from, to, needle) in cases {
+        assert!(liver.contains(from), "test bug: `{from}` not in liver.ron");
+        match Scenario::from_str_named(&liver.replacen(from, to, 1), liver_path) {
+            Ok(_) => panic!("expected an error for `{to}`"),
+            Err(e) => assert!(e.to_string().contains(needle), "expected `{needle}` in: {e}"),
+        }
+    }
+}
+
 /// Organ meshes and the new sections: a missing mesh file, a mesh in a 2-D scenario, a mesh placed
 /// outside the domain, an absurd tool speed, a blade on an indenter, a critical stretch below 1, a bad
 /// physiology scale.

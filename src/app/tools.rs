@@ -226,6 +226,7 @@ mod tests {
             centre: [0.0005, 0.005, 0.01],
             velocity: [0.0; 3],
             tool: Some(crate::scenario::Tool { kind: ToolKind::Scalpel, max_speed: 0.2, blade_cut: false }),
+            moulded: false,
         };
         let objects = [pose];
         let scene = ToolScene {

@@ -534,7 +534,8 @@ impl Renderer {
         let mut translucent = Vec::new();
         for pose in scene.objects {
             let tool = pose.tool.is_some();
-            if !tool && !self.settings.show_walls {
+            // a moulded bed's box only bounds its particles: drawing it would hide the organ in it
+            if pose.moulded || (!tool && !self.settings.show_walls) {
                 continue;
             }
             let colour = if tool { [0.62, 0.64, 0.68, 1.0] } else { [0.55, 0.58, 0.62, 0.35] };

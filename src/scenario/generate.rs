@@ -33,6 +33,9 @@ pub struct BoundaryObject {
     pub spacing: f64,
     /// Set when the user drives this object (viewer tools).
     pub tool: Option<Tool>,
+    /// A bed moulded to the tissue (`Boundary::mould`): its particles are not its shape's lattice, so
+    /// it gets no contact projection and is not drawn as its shape.
+    pub moulded: bool,
 }
 
 /// Everything a back-end needs to build its initial state, plus the derived per-phase sizes.
@@ -350,7 +353,11 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
         let sp = b.spacing.unwrap_or(default_spacing);
         let ml = if g.dx_liquid > 0.0 { g.mass_liquid * (sp / g.dx_liquid).powi(d as i32) } else { 0.0 };
         let ms = if g.dx_solid > 0.0 { g.mass_solid * (sp / g.dx_solid).powi(d as i32) } else { 0.0 };
-        for p in lattice_points(&b.shape, sp, d) {
+        let mut points = lattice_points(&b.shape, sp, d);
+        if let Some(m) = &b.mould {
+            points = moulded_bed(points, &g.solid.pos, s.gravity, m, sp);
+        }
+        for p in points {
             g.boundary_pos.push(p);
             g.boundary_object.push(k as u32);
             g.boundary_mass_liquid.push(ml);
@@ -364,6 +371,7 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             friction: b.friction,
             spacing: sp,
             tool: b.tool.clone(),
+            moulded: b.mould.is_some(),
         });
     }
     for e in &s.emitters {
@@ -397,6 +405,53 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
     let room = if s.emitters.is_empty() { 0 } else { DEFAULT_EMITTER_ROOM };
     g.liquid_capacity = s.liquid_capacity.map_or(g.liquid.pos.len() + room, |c| c as usize);
     g
+}
+
+/// The lattice points of a bed moulded to the tissue (`Boundary::mould`): those at least `clearance`
+/// from every solid particle that have a solid particle above them in their column — along −ĝ, within
+/// `clearance + depth`, less than ¾ of a bed spacing `sp` off the vertical (every point under a lattice
+/// of spacing ≤ `sp` has a column that close: ≤ √2/2 of it) — and none level with or below them there
+/// (which a point in a gap of the tissue's own lattice has), so the bed fills the space under the
+/// tissue's lower face to `depth` and nothing beside, inside or above it.
+pub fn moulded_bed(points: Vec<V3>, solid: &[V3], gravity: V3, m: &super::Mould, sp: f64) -> Vec<V3> {
+    let g = (gravity[0] * gravity[0] + gravity[1] * gravity[1] + gravity[2] * gravity[2]).sqrt();
+    if !(g > 0.0) {
+        return Vec::new();
+    }
+    let up = [-gravity[0] / g, -gravity[1] / g, -gravity[2] / g];
+    let reach = (m.clearance + m.depth).max(sp);
+    let cell = |p: &V3| -> [i64; 3] { [0, 1, 2].map(|a| (p[a] / reach).floor() as i64) };
+    let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = std::collections::HashMap::new();
+    for (i, q) in solid.iter().enumerate() {
+        grid.entry(cell(q)).or_default().push(i);
+    }
+    let keep = |p: &V3| {
+        let c = cell(p);
+        let (mut under, mut clear, mut inside) = (false, true, false);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(list) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else { continue };
+                    for &i in list {
+                        let d = [solid[i][0] - p[0], solid[i][1] - p[1], solid[i][2] - p[2]];
+                        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                        if r2 < m.clearance * m.clearance {
+                            clear = false;
+                        }
+                        let along = d[0] * up[0] + d[1] * up[1] + d[2] * up[2];
+                        let lateral2 = (r2 - along * along).max(0.0);
+                        let column = lateral2 < 0.5625 * sp * sp;
+                        under |= column && along > 0.0 && along <= m.clearance + m.depth;
+                        // tissue at or below the point in its column: it is in a gap of the tissue's
+                        // lattice (or between two layers of tissue), not under it
+                        inside |= column && along <= 0.0;
+                    }
+                }
+            }
+        }
+        under && clear && !inside
+    };
+    points.into_iter().filter(keep).collect()
 }
 
 /// Empties the scenario's cavities (SPEC §7.8's pierced capsule) of tissue: every solid particle
@@ -638,5 +693,55 @@ pub fn motion_at(m: &Motion, t: f64) -> (V3, V3) {
                 [amplitude[0] * c, amplitude[1] * c, amplitude[2] * c],
             )
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A bed moulded under a 2 × 2 column of solid particles (gravity −y): its points lie under the
+    /// column's footprint (less than ¾ of a spacing off it), below it within clearance + depth, at least
+    /// `clearance` from every solid particle; nothing beside or above the tissue; no gravity, no bed.
+    #[test]
+    fn a_moulded_bed_fills_the_space_under_the_tissue() {
+        let dx = 0.01;
+        // on the bed's cell-centred lattice, so that lattice points lie straight under each particle
+        let solid: Vec<V3> = [(0.005, 0.005), (0.005 + dx, 0.005)]
+            .iter()
+            .flat_map(|&(x, z)| [[x, 0.055, z], [x, 0.055 + dx, z], [x, 0.055, z + dx], [x, 0.055 + dx, z + dx]])
+            .collect();
+        let box_lattice = lattice_points(&Region::Box { min: [-0.05, -0.05, -0.05], max: [0.06, 0.1, 0.06] }, dx, 3);
+        let m = super::super::Mould { clearance: 0.005, depth: 0.03 };
+        let bed = moulded_bed(box_lattice.clone(), &solid, [0.0, -9.81, 0.0], &m, dx);
+        assert!(!bed.is_empty() && bed.len() < box_lattice.len());
+        for p in &bed {
+            let near =
+                solid.iter().map(|q| ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2)).sqrt());
+            assert!(near.fold(f64::INFINITY, f64::min) >= m.clearance, "{p:?} within the clearance");
+            assert!(
+                p[1] < 0.055 && p[1] >= 0.055 - m.clearance - m.depth,
+                "{p:?} not below the tissue within the depth"
+            );
+            let off = solid.iter().map(|q| (q[0] - p[0]).hypot(q[2] - p[2])).fold(f64::INFINITY, f64::min);
+            assert!(off < 0.75 * dx, "{p:?} beside the tissue");
+        }
+        // every lattice point straight under a solid particle, within the depth, is in the bed
+        let mut under = 0;
+        for q in &solid {
+            for p in &box_lattice {
+                let below = q[1] - p[1];
+                if (p[0] - q[0]).abs() < 1e-9
+                    && (p[2] - q[2]).abs() < 1e-9
+                    && p[1] <= 0.055 - m.clearance
+                    && below <= 0.03
+                {
+                    assert!(bed.contains(p), "{p:?} under {q:?} left out");
+                    under += 1;
+                }
+            }
+        }
+        assert!(under >= 8, "only {under} lattice points checked under the tissue");
+        assert!(moulded_bed(box_lattice, &solid, [0.0; 3], &m, dx).is_empty());
     }
 }

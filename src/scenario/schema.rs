@@ -453,6 +453,25 @@ pub struct Boundary {
     /// Marks the object as a tool the viewer's user drives with the mouse (a kinematic body, SPEC §4.1).
     #[serde(default)]
     pub tool: Option<Tool>,
+    /// A bed moulded to the tissue's underside: only the lattice points of `shape` beneath the
+    /// generated solid (straight down along ĝ) are kept, so the organ rests on its whole lower face
+    /// instead of on the top of a flat box (the abdominal organs under the liver). Static objects only;
+    /// it has no contact projection (its shape is not its surface), the virtual particles alone hold the
+    /// tissue, as SPEC §4.1 has it.
+    #[serde(default)]
+    pub mould: Option<Mould>,
+}
+
+/// How a moulded bed follows the tissue above it (`Boundary::mould`).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Mould {
+    /// Gap left between the bed and the nearest solid particle [m] (about Δx_s/2: the tissue settles
+    /// onto it by that much).
+    pub clearance: f64,
+    /// Thickness of the bed beneath the tissue's lower face [m]; at least the support radius R so
+    /// that tissue at its surface sees a full kernel of boundary particles.
+    pub depth: f64,
 }
 
 /// What a user-driven boundary object is: the viewer maps mouse input to `MoveObject` /

@@ -502,6 +502,21 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
                 "give Some(μ) with μ in [0, 2] (tissue on a tray ~0.3–0.6; 0 is frictionless), or leave it out",
             )?;
         }
+        if let Some(m) = &b.mould {
+            Check::positive(&format!("{f}.mould.clearance"), m.clearance, "metres, about half the solid spacing")?;
+            Check::positive(&format!("{f}.mould.depth"), m.depth, "metres, at least the support radius 2.6Δx")?;
+            let fix = "a moulded bed is a static support under the tissue: remove `mould`, or the motion / tool";
+            if b.motion != Motion::Static || b.tool.is_some() {
+                return Err(Check::fail(format!("{f}.mould"), "a moulded bed cannot move or be a tool", fix));
+            }
+            if s.solid.is_none() || s.gravity.iter().all(|g| *g == 0.0) {
+                return Err(Check::fail(
+                    format!("{f}.mould"),
+                    "a bed is moulded to the tissue's underside, which needs a solid and gravity (\"down\")",
+                    "add the solid and a gravity, or remove `mould`",
+                ));
+            }
+        }
         if let Some(tool) = &b.tool {
             Check::positive(&format!("{f}.tool.max_speed"), tool.max_speed, "m/s")?;
             if tool.max_speed > 100.0 {

@@ -132,6 +132,8 @@ pub struct ObjectPose {
     pub centre: V3,
     pub velocity: V3,
     pub tool: Option<crate::scenario::Tool>,
+    /// A bed moulded to the tissue (`Boundary::mould`): its shape only bounds its particles.
+    pub moulded: bool,
 }
 
 /// Shift of the rest positions that keeps an object in place when its motion changes from one whose
@@ -154,7 +156,8 @@ pub(crate) fn object_pose(
         let z = if two { o[2] } else { p.z as f64 + d[2] + o[2] };
         [p.x as f64 + d[0] + o[0], p.y as f64 + d[1] + o[1], z]
     };
-    let (shape, centre) = if geom.kind == 0 {
+    // by the object's shape, not the geometry's kind: a moulded bed's kind is 2 (no shape)
+    let (shape, centre) = if matches!(object.shape, crate::scenario::Region::Box { .. }) {
         let (a, b) = (world(geom.a), world(geom.b));
         let c = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0];
         (crate::scenario::Region::Box { min: a, max: b }, c)
@@ -162,7 +165,14 @@ pub(crate) fn object_pose(
         let c = world(geom.a);
         (crate::scenario::Region::Sphere { centre: c, radius: geom.b.x as f64 }, c)
     };
-    ObjectPose { name: object.name.clone(), shape, centre, velocity: v, tool: object.tool.clone() }
+    ObjectPose {
+        name: object.name.clone(),
+        shape,
+        centre,
+        velocity: v,
+        tool: object.tool.clone(),
+        moulded: object.moulded,
+    }
 }
 
 /// Shift (simulation coordinates) that puts `pose`'s centre at `position`; errors on non-finite input.

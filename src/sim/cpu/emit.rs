@@ -134,6 +134,17 @@ pub fn region_geom(params: &Params, r: &Region) -> ObjectGeom {
     }
 }
 
+/// A boundary object's geometry: its shape's, or kind 2 ("no shape": no contact projection, no surface
+/// normal, no ghost-velocity extrapolation) for a bed moulded to the tissue, whose particles fill only
+/// part of its shape (`Boundary::mould`). The GPU back-end uploads the same table.
+pub fn object_geom(params: &Params, o: &crate::scenario::BoundaryObject) -> ObjectGeom {
+    let mut g = region_geom(params, &o.shape);
+    if o.moulded {
+        g.kind = 2;
+    }
+    g
+}
+
 /// Whether `x` lies in `g` (on the first two axes only in 2-D) — twin of `in_region` in emit.wgsl.
 pub fn in_region(g: &ObjectGeom, x: Vec3, three_d: bool) -> bool {
     if g.kind == 0 {

@@ -264,7 +264,7 @@ impl CpuSolver {
                 ObjectContact { density, pressure, friction: o.friction.map_or(-1.0, |mu| mu as f32) }
             })
             .collect();
-        let shapes: Vec<forces::ObjectGeom> = g.objects.iter().map(|o| emit::region_geom(&params, &o.shape)).collect();
+        let shapes: Vec<forces::ObjectGeom> = g.objects.iter().map(|o| emit::object_geom(&params, o)).collect();
         let gravity = params.gravity;
         let emit = emit::EmitState::new(&params, g);
         let pool = std::sync::Arc::new(

@@ -1288,7 +1288,7 @@ fn dt_limit(code: u32) -> DtLimit {
 
 /// Object shapes at rest in simulation coordinates (as `CpuSolver::new`).
 fn object_shapes(params: &Params, objects: &[BoundaryObject]) -> Vec<ObjectGeom> {
-    objects.iter().map(|o| super::cpu::emit::region_geom(params, &o.shape)).collect()
+    objects.iter().map(|o| super::cpu::emit::object_geom(params, o)).collect()
 }
 
 /// The object table at time t (twin of `CpuSolver::move_boundaries`: same f64 → f32 conversions).
