@@ -415,7 +415,7 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
 /// tissue's lower face to `depth` and nothing beside, inside or above it.
 pub fn moulded_bed(points: Vec<V3>, solid: &[V3], gravity: V3, m: &super::Mould, sp: f64) -> Vec<V3> {
     let g = (gravity[0] * gravity[0] + gravity[1] * gravity[1] + gravity[2] * gravity[2]).sqrt();
-    if !(g > 0.0) {
+    if g.is_nan() || g <= 0.0 {
         return Vec::new();
     }
     let up = [-gravity[0] / g, -gravity[1] / g, -gravity[2] / g];
