@@ -242,7 +242,7 @@ fn moulded_bed_errors() {
     let liver = std::fs::read_to_string(liver_path).expect("liver.ron");
     let bed = "shape: Box(min: (-0.105, -0.0395, -0.07), max: (0.105, 0.0, 0.07)),";
     let cases: [(&str, &str, &str); 4] = [
-        ("Mould(clearance: 0.0025", "Mould(clearance: -0.0025", "boundaries[4].mould.clearance"),
+        ("Mould(clearance: 0.005", "Mould(clearance: -0.005", "boundaries[4].mould.clearance"),
         ("depth: 0.015))", "depth: NaN))", "boundaries[4].mould.depth"),
         ("gravity: (0.0, -9.81, 0.0)", "gravity: (0.0, 0.0, 0.0)", "boundaries[4].mould"),
         (
