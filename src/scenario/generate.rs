@@ -429,6 +429,14 @@ pub fn moulded_bed(points: Vec<V3>, solid: &[V3], fixed: &[bool], gravity: V3, m
         grid.entry(cell(q)).or_default().push(i);
     }
     let pins: Vec<V3> = solid.iter().zip(fixed).filter(|(_, f)| **f).map(|(q, _)| *q).collect();
+    // q seen from p: height above it along −ĝ, squared distance off its vertical, squared distance
+    let offset = |q: &V3, p: &V3| {
+        let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let along = d[0] * up[0] + d[1] * up[1] + d[2] * up[2];
+        (along, (r2 - along * along).max(0.0), r2)
+    };
+    let in_column = |lateral2: f64| lateral2 < 0.5625 * sp * sp;
     let keep = |p: &V3| {
         let c = cell(p);
         let (mut under, mut clear, mut inside) = (false, true, false);
@@ -437,14 +445,11 @@ pub fn moulded_bed(points: Vec<V3>, solid: &[V3], fixed: &[bool], gravity: V3, m
                 for dz in -1..=1 {
                     let Some(list) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else { continue };
                     for &i in list {
-                        let d = [solid[i][0] - p[0], solid[i][1] - p[1], solid[i][2] - p[2]];
-                        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                        let (along, lateral2, r2) = offset(&solid[i], p);
                         if r2 < m.clearance * m.clearance {
                             clear = false;
                         }
-                        let along = d[0] * up[0] + d[1] * up[1] + d[2] * up[2];
-                        let lateral2 = (r2 - along * along).max(0.0);
-                        let column = lateral2 < 0.5625 * sp * sp;
+                        let column = in_column(lateral2);
                         under |= column && along > 0.0 && along <= m.clearance + m.depth;
                         // tissue at or below the point in its column: it is in a gap of the tissue's
                         // lattice (or between two layers of tissue), not under it
@@ -456,9 +461,8 @@ pub fn moulded_bed(points: Vec<V3>, solid: &[V3], fixed: &[bool], gravity: V3, m
         // no bed under tissue held by a fixed region: what lies between the two would be squeezed
         let pinned = || {
             pins.iter().any(|q| {
-                let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
-                let along = d[0] * up[0] + d[1] * up[1] + d[2] * up[2];
-                along > 0.0 && d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - along * along < 0.5625 * sp * sp
+                let (along, lateral2, _) = offset(q, p);
+                along > 0.0 && in_column(lateral2)
             })
         };
         under && clear && !inside && !pinned()
