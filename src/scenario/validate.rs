@@ -503,7 +503,7 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             )?;
         }
         if let Some(m) = &b.mould {
-            Check::positive(&format!("{f}.mould.clearance"), m.clearance, "metres, about half the solid spacing")?;
+            Check::positive(&format!("{f}.mould.clearance"), m.clearance, "metres, about the solid spacing Δx_s")?;
             Check::positive(&format!("{f}.mould.depth"), m.depth, "metres, at least the support radius 2.6Δx")?;
             let fix = "a moulded bed is a static support under the tissue: remove `mould`, or the motion / tool";
             if b.motion != Motion::Static || b.tool.is_some() {
