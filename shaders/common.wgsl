@@ -92,6 +92,11 @@ struct SimParams {
     dt_upper: f32,
     // hourglass-control coefficient c (numerics.hourglass); 0: off
     hourglass: f32,
+    // ligament springs of tethered solid particles: ω² [1/s²], 2ζω [1/s] (0: none)
+    tether_omega2: f32,
+    tether_damping: f32,
+    _pad0: f32,
+    _pad1: f32,
 }
 
 // Mirrors `StepState`: the GPU-resident Δt (SPEC §5.3) and the step status bitmask (STYLE §5.4).
@@ -272,6 +277,7 @@ const STATUS_DT_COLLAPSED: u32 = 4u;
 // Solid flags, see `scenario::SolidFlags`.
 const SOLID_KINEMATIC: u32 = 1u;
 const SOLID_MEMBRANE: u32 = 2u;
+const SOLID_TETHERED: u32 = 4u;
 
 // `sim::DtLimit` order.
 const LIMIT_VISCOUS: u32 = 0u;

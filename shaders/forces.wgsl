@@ -456,6 +456,11 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         a += f / pi4.w;
     }
+    // ligament spring and dashpot to the anchor X (Scenario::ligaments): −ω²(x − X) − 2ζω v
+    if ((solid_flags[i] & SOLID_TETHERED) != 0u) {
+        let d = min_image(xi - solid_pos_ref[i].xyz);
+        a -= d * params.tether_omega2 + vi * params.tether_damping;
+    }
     solid_acc[i] = vec4<f32>(a + params.gravity.xyz, 0.0);
 }
 

@@ -31,6 +31,7 @@ struct Stress {
 // SolidFlags (src/scenario/generate.rs).
 const FLAG_KINEMATIC: u32 = 1u;
 const FLAG_MEMBRANE: u32 = 2u;
+const FLAG_TETHERED: u32 = 4u;
 
 // Field modes (`FieldMode` in src/render/gpu_data.rs).
 const FIELD_PLAIN: u32 = 0u;
@@ -63,12 +64,12 @@ fn tissue_colour(i: u32) -> vec3<f32> {
         return colour_map(broken / scale);
     }
     // Plain liver parenchyma (linear RGB of a red-brown liver), the capsule lighter and glossier,
-    // ligament (fixed) particles pale.
+    // ligament (fixed or tethered) particles pale.
     var base = vec3<f32>(0.32, 0.07, 0.05);
     if ((flags & FLAG_MEMBRANE) != 0u) {
         base = mix(base, vec3<f32>(0.75, 0.62, 0.58), 0.3);
     }
-    if ((flags & FLAG_KINEMATIC) != 0u) {
+    if ((flags & (FLAG_KINEMATIC | FLAG_TETHERED)) != 0u) {
         base = vec3<f32>(0.55, 0.50, 0.38);
     }
     return base;

@@ -7,7 +7,7 @@
 mod common;
 
 use common::gpu::gpu_test;
-use common::scenes::{perfused_block, sliding_block, wicking_block};
+use common::scenes::{perfused_block, perfused_cube_under_gravity, sliding_block, wicking_block};
 use glam::{Mat3, Vec3};
 use perfuse::scenario::generate;
 use perfuse::sim::cpu::grid::Neighbours;
@@ -36,6 +36,18 @@ fn stepped(mut cpu: CpuSolver, steps: usize) -> CpuSolver {
         cpu.step().expect("CPU step");
     }
     cpu
+}
+
+/// Steps both back-ends `n` times; their states after, and the largest position difference of the
+/// liquid and the solid.
+fn step_both(cpu: &mut CpuSolver, gpu: &mut GpuSolver, n: usize) -> (perfuse::sim::State, perfuse::sim::State, f32) {
+    for _ in 0..n {
+        gpu.step().expect("GPU step");
+        cpu.step().expect("CPU step");
+    }
+    let (g, c) = (gpu.read_state().expect("GPU state"), cpu.read_state());
+    let d_x = max_vec_diff(&g.liquid.pos, &c.liquid.pos).max(max_vec_diff(&g.solid.pos, &c.solid.pos));
+    (g, c, d_x)
 }
 
 fn xyz(v: &[f32; 4]) -> Vec3 {
@@ -547,22 +559,11 @@ fn wall_friction_matches_cpu() {
 #[test]
 fn moulded_bed_matches_cpu() {
     gpu_test("moulded_bed_matches_cpu", |ctx| {
-        let sc = perfuse::scenario::Scenario::from_str_named(
-            r#"Scenario(
-            name: "bed", dimensions: 3,
-            domain: Domain(min: (-0.03, -0.03, -0.03), max: (0.03, 0.03, 0.04)),
-            gravity: (0.0, 0.0, -9.81),
-            liquid: Some(Liquid(density: 1000.0, viscosity: 0.01, stiffness: Some(1e4))),
-            solid: Some(Solid(density: 1000.0, c10: 1e3, c01: 0.0, k_s: 1e4, n_sat: 0.6, k_sat: 1e4, friction: 1e5)),
-            numerics: Numerics(dx_solid: Some(0.004), dx_liquid: Some(0.004)),
-            particles: [ PerfusedBlock(min: (-0.01, -0.01, 0.0), max: (0.01, 0.01, 0.02), solid_fraction: 0.6, liquid_fraction: 0.4) ],
-            boundaries: [ Boundary(name: "bed", shape: Box(min: (-0.02, -0.02, -0.02), max: (0.02, 0.02, 0.01)),
-                                   mould: Some(Mould(clearance: 0.002, depth: 0.012))) ],
-            duration: 0.1,
-        )"#,
-            "bed.ron",
-        )
-        .expect("valid");
+        let sc = perfused_cube_under_gravity(
+            "bed",
+            r#"boundaries: [ Boundary(name: "bed", shape: Box(min: (-0.02, -0.02, -0.02), max: (0.02, 0.02, 0.01)),
+                                   mould: Some(Mould(clearance: 0.002, depth: 0.012))) ],"#,
+        );
         let g = generate(&sc);
         // three layers under the block's 2 × 2 cm footprint (the bed's lattice, offset by half a
         // spacing from the block's, has 6 × 6 columns there, the outer ones under its faces at ±1 cm)
@@ -573,13 +574,8 @@ fn moulded_bed_matches_cpu() {
         );
         let mut cpu = solver_for(&sc);
         let mut gpu = gpu_from(ctx, &cpu);
-        for _ in 0..300 {
-            gpu.step().unwrap();
-            cpu.step().unwrap();
-        }
-        let (gs, cs) = (gpu.read_state().unwrap(), cpu.read_state());
+        let (gs, cs, d_x) = step_both(&mut cpu, &mut gpu, 300);
         let h = cpu.params.k_solid.h;
-        let d_x = max_vec_diff(&gs.liquid.pos, &cs.liquid.pos).max(max_vec_diff(&gs.solid.pos, &cs.solid.pos));
         let world_z = |s: &perfuse::sim::State| {
             s.solid.pos.iter().map(|x| cpu.params.to_world(*x)[2]).fold(f64::INFINITY, f64::min)
         };
@@ -592,5 +588,43 @@ fn moulded_bed_matches_cpu() {
         assert!(d_x <= 1e-3 * h, "positions diverged");
         // resting on the bed: inside the bed's box (no projection out of it), above the bed's top layer
         assert!((-0.002..0.01).contains(&zc) && (-0.002..0.01).contains(&zg), "lowest solid particle at {zc} / {zg} m");
+    });
+}
+
+/// Elastic ligaments (`Scenario::ligaments`): a perfused block falls under gravity, held by damped
+/// springs in a ball at its top. Both back-ends step alike (300 steps), and the tethered particles
+/// stay nearer their anchors than the free ones below them.
+#[test]
+fn tethered_block_matches_cpu() {
+    gpu_test("tethered_block_matches_cpu", |ctx| {
+        let sc = perfused_cube_under_gravity(
+            "tethered",
+            "ligaments: Some(Ligaments(regions: [Sphere(centre: (0.0, 0.0, 0.02), radius: 0.009)], frequency: 30.0, damping_ratio: 0.5)),",
+        );
+        let mut cpu = solver_for(&sc);
+        let tethered: Vec<bool> =
+            cpu.st.solid.flags.iter().map(|f| f & perfuse::scenario::SolidFlags::TETHERED != 0).collect();
+        let n_t = tethered.iter().filter(|&&t| t).count();
+        assert!(n_t > 0 && n_t < tethered.len(), "{n_t} of {} tethered", tethered.len());
+        let x0 = cpu.st.solid.x.clone();
+        let mut gpu = gpu_from(ctx, &cpu);
+        let (gs, cs, d_x) = step_both(&mut cpu, &mut gpu, 300);
+        let h = cpu.params.k_solid.h;
+        let d_v = max_vec_diff(&gs.solid.vel, &cs.solid.vel);
+        let mean_drop = |s: &perfuse::sim::State, which: bool| {
+            let ids: Vec<usize> = (0..x0.len()).filter(|&i| tethered[i] == which).collect();
+            ids.iter().map(|&i| x0[i].z - s.solid.pos[i].z).sum::<f32>() / ids.len() as f32
+        };
+        let (drop_t, drop_f) = (mean_drop(&cs, true), mean_drop(&cs, false));
+        eprintln!(
+            "tethered block, 300 steps (t = {:.3e} s): max |Δx| {d_x:.3e} m ({:.3e} h), |Δv| {d_v:.3e} m/s; \
+             mean drop: {n_t} tethered {drop_t:.3e} m, free {drop_f:.3e} m (GPU {:.3e} / {:.3e})",
+            cs.t,
+            d_x / h,
+            mean_drop(&gs, true),
+            mean_drop(&gs, false)
+        );
+        assert!(d_x <= 1e-3 * h, "positions diverged");
+        assert!(drop_t > 0.0 && drop_f > drop_t, "the springs hold the top: drops {drop_t} / {drop_f} m");
     });
 }

@@ -260,6 +260,58 @@ fn moulded_bed_errors() {
     }
 }
 
+/// Elastic ligaments: a negative or too-stiff frequency, a NaN damping ratio, a region that is not
+/// finite, no region, and ligaments without a solid are refused, each naming its field (and, for the
+/// stiffness, the bound).
+#[test]
+fn ligament_errors() {
+    let liver_path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenarios/liver.ron");
+    let liver = std::fs::read_to_string(liver_path).expect("liver.ron");
+    let cases: [(&str, &str, &[&str]); 4] = [
+        ("frequency: 15.0,", "frequency: -15.0,", &["ligaments.frequency", "> 0"]),
+        // ζ = 1 at dt_max = 1 ms: at most 1/(2π·1e-3·2) ≈ 80 Hz
+        ("frequency: 15.0,", "frequency: 200.0,", &["ligaments.frequency", "at most 80 Hz"]),
+        ("damping_ratio: 1.0,", "damping_ratio: NaN,", &["ligaments.damping_ratio"]),
+        ("-0.030314), radius: 0.025)", "-0.030314), radius: inf)", &["ligaments.regions[0]"]),
+    ];
+    for (from, to, needles) in cases {
+        assert!(liver.contains(from), "test bug: `{from}` not in liver.ron");
+        match Scenario::from_str_named(&liver.replacen(from, to, 1), liver_path) {
+            Ok(_) => panic!("expected an error for `{to}`"),
+            Err(e) => {
+                for needle in needles {
+                    assert!(e.to_string().contains(needle), "expected `{needle}` in: {e}");
+                }
+            }
+        }
+    }
+    let small = |phase: &str, ligaments: &str| {
+        format!(
+            r#"Scenario(
+            name: "lig", dimensions: 3,
+            domain: Domain(min: (-0.01, -0.01, -0.01), max: (0.01, 0.01, 0.01)),
+            liquid: Some(Liquid(density: 1000.0, viscosity: 0.001, sound_speed: Some(10.0))),
+            solid: {phase},
+            numerics: Numerics(dx_solid: Some(0.001), dx_liquid: Some(0.001)),
+            particles: [ Box(phase: Liquid, min: (-0.002, -0.002, -0.002), max: (0.002, 0.002, 0.002), fraction: 1.0) ],
+            ligaments: Some(Ligaments({ligaments})),
+            duration: 0.01,
+        )"#
+        )
+    };
+    let solid = "Some(Solid(density: 1000.0, c10: 1e4, c01: 0.0, k_s: 1e4, n_sat: 0.6, k_sat: 1e4))";
+    let sphere = "regions: [Sphere(centre: (0.0, 0.0, 0.0), radius: 0.001)], frequency: 10.0";
+    for (text, needle) in [
+        (small(solid, "regions: [], frequency: 10.0"), "ligaments.regions"),
+        (small("None", sphere), "there is no solid"),
+    ] {
+        match Scenario::from_str_named(&text, "lig.ron") {
+            Ok(_) => panic!("expected an error containing `{needle}`"),
+            Err(e) => assert!(e.to_string().contains(needle), "expected `{needle}` in: {e}"),
+        }
+    }
+}
+
 /// Organ meshes and the new sections: a missing mesh file, a mesh in a 2-D scenario, a mesh placed
 /// outside the domain, an absurd tool speed, a blade on an indenter, a critical stretch below 1, a bad
 /// physiology scale.

@@ -11,6 +11,9 @@ impl SolidFlags {
     pub const KINEMATIC: u32 = 1;
     /// Membrane (Glisson's capsule) particle: SPEC §4.5.
     pub const MEMBRANE: u32 = 2;
+    /// Tied to its initial position by a damped spring (`Scenario::ligaments`); never set together
+    /// with `KINEMATIC`.
+    pub const TETHERED: u32 = 4;
 }
 
 /// Particles of one phase as generated (f64, absolute coordinates).
@@ -330,15 +333,23 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
         }
         _ => (vec![false; g.solid.pos.len()], (0..g.solid.pos.len()).collect()),
     };
-    // A capsule child is fixed with its parent (the two are one lattice site, SPEC §4.1/§4.5): a child
-    // left free beside a kinematic parent, on the rim of a fixed region, was squeezed out of the
-    // ligament region during the liver's relaxation and broke all 17 bonds that broke there.
+    // A capsule child is fixed (or tethered) with its parent (the two are one lattice site, SPEC
+    // §4.1/§4.5): a child left free beside a kinematic parent, on the rim of a fixed region, was
+    // squeezed out of the ligament region during the liver's relaxation and broke all 17 bonds that
+    // broke there.
+    let tether_regions = s.ligaments.as_ref().map(|l| l.regions.as_slice()).unwrap_or(&[]);
     g.solid_flags = (0..g.solid.pos.len())
         .map(|i| {
             let site = g.solid.pos[parent[i]];
-            let fixed =
-                if s.fixed_regions.iter().any(|r| r.contains(site, s.dimensions)) { SolidFlags::KINEMATIC } else { 0 };
-            fixed | if membrane[i] { SolidFlags::MEMBRANE } else { 0 }
+            let inside = |regions: &[Region]| regions.iter().any(|r| r.contains(site, s.dimensions));
+            let hold = if inside(&s.fixed_regions) {
+                SolidFlags::KINEMATIC
+            } else if inside(tether_regions) {
+                SolidFlags::TETHERED
+            } else {
+                0
+            };
+            hold | if membrane[i] { SolidFlags::MEMBRANE } else { 0 }
         })
         .collect();
     // A membrane particle shows the liquid the equivalent mass of its share of a solid lattice site (§4.1).

@@ -42,6 +42,11 @@ pub struct Scenario {
     /// Regions whose solid particles are kinematic and held still (clamps, ligaments; SPEC §4.2).
     #[serde(default)]
     pub fixed_regions: Vec<Region>,
+    /// Elastic ligament attachments: solid particles tied to their initial positions by damped springs
+    /// (the organ's suspensory ligaments as elastic bands rather than rigid clamps). A particle inside
+    /// a `fixed_regions` entry stays kinematic.
+    #[serde(default)]
+    pub ligaments: Option<Ligaments>,
     /// Glisson's capsule: surface detection and resolution enhancement of the solid (SPEC §4.5).
     #[serde(default)]
     pub membrane: Option<Membrane>,
@@ -603,6 +608,27 @@ impl Default for Membrane {
     fn default() -> Self {
         Membrane { threshold: 0.5, count: 3, radius: 0.5, angle: std::f64::consts::FRAC_PI_4 }
     }
+}
+
+/// Elastic attachments: every solid particle whose lattice site lies in one of `regions` feels, besides
+/// the tissue's forces, a damped spring to its initial (anchor) position X:
+/// a = −ω²(x − X) − 2ζω v with ω = 2π·`frequency` (README: deviations from SPEC — the thesis holds its
+/// hanging liver by kinematic particles, §4.2.6). A region of attached mass M_a is held by a total
+/// stiffness ω²M_a, spread over its volume rather than concentrated on a rigid rim.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Ligaments {
+    /// Attachment regions (the solid particles inside are tethered).
+    pub regions: Vec<Region>,
+    /// Natural frequency f [Hz] of one tethered particle on its spring alone.
+    pub frequency: f64,
+    /// Damping ratio ζ of the springs (1: critical; 0: undamped).
+    #[serde(default = "default_ligament_damping")]
+    pub damping_ratio: f64,
+}
+
+fn default_ligament_damping() -> f64 {
+    1.0
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -558,6 +558,9 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             ));
         }
     }
+    if let Some(lig) = &s.ligaments {
+        check_ligaments(s, lig)?;
+    }
     for (i, r) in s.cavities.iter().enumerate() {
         check_region(&format!("cavities[{i}]"), r)?;
         if s.solid.is_none() {
@@ -671,6 +674,44 @@ fn check_box(f: &str, min: [f64; 3], max: [f64; 3], d: usize, s: &Scenario) -> R
                 "keep generators inside `domain`",
             ));
         }
+    }
+    Ok(())
+}
+
+/// The springs of `ligaments`: regions as any region, a solid to hold, and an explicit step that
+/// resolves the spring and its dashpot at the largest step the run may take.
+fn check_ligaments(s: &Scenario, lig: &super::Ligaments) -> Result<(), Problem> {
+    if s.solid.is_none() {
+        return Err(Check::fail(
+            "ligaments",
+            "ligaments hold solid particles, but there is no solid",
+            "remove it or add solid particles",
+        ));
+    }
+    if lig.regions.is_empty() {
+        return Err(Check::fail(
+            "ligaments.regions",
+            "no attachment region is given",
+            "list at least one region, e.g. [Sphere(centre: (0, 0, 0), radius: 0.01)], or remove ligaments",
+        ));
+    }
+    for (i, r) in lig.regions.iter().enumerate() {
+        check_region(&format!("ligaments.regions[{i}]"), r)?;
+    }
+    Check::range("ligaments.damping_ratio", lig.damping_ratio, 0.0, 10.0, "give ζ ≥ 0, e.g. 1 (critical)")?;
+    // The explicit step resolves the spring (ωΔt ≤ 1) and the dashpot (2ζωΔt ≤ 1).
+    let dt = s.numerics.fixed_dt.unwrap_or(s.numerics.dt_max);
+    let f_max = 1.0 / (2.0 * std::f64::consts::PI * dt * (2.0 * lig.damping_ratio).max(1.0));
+    Check::positive("ligaments.frequency", lig.frequency, "give the springs' natural frequency in Hz, e.g. 10")?;
+    if lig.frequency > f_max {
+        return Err(Check::fail(
+            "ligaments.frequency",
+            format!(
+                "{} Hz is too stiff for the largest step Δt = {dt} s (with ζ = {}: 2πf·Δt·max(1, 2ζ) must be ≤ 1)",
+                lig.frequency, lig.damping_ratio
+            ),
+            format!("give at most {f_max:.0} Hz, or lower numerics.dt_max"),
+        ));
     }
     Ok(())
 }

@@ -36,6 +36,9 @@ pub struct Params {
     pub liquid_tension: bool,
     /// Hourglass-control coefficient c of `numerics.hourglass` (0: off).
     pub hourglass: f32,
+    /// Ligament springs of the tethered solid particles: ω² [1/s²] and 2ζω [1/s] (`ligaments`; 0: none).
+    pub tether_omega2: f32,
+    pub tether_damping: f32,
     pub k_s: f32,
     pub k_sat: f32,
     pub n_sat: f32,
@@ -183,6 +186,13 @@ impl Params {
             cell[a] = ext / cells;
         }
         let k_solid = Kernel::new(h_s as f32, dim);
+        let (tether_omega, tether_zeta_2omega) = match &s.ligaments {
+            Some(l) => {
+                let w = 2.0 * std::f64::consts::PI * l.frequency;
+                (w, 2.0 * l.damping_ratio * w)
+            }
+            None => (0.0, 0.0),
+        };
         Params {
             dim,
             k_liquid: Kernel::new(h_l as f32, dim),
@@ -201,6 +211,8 @@ impl Params {
             cohesion_lb: cohesion_lb as f32,
             liquid_tension: n.liquid_tension,
             hourglass: n.hourglass.unwrap_or(0.0) as f32,
+            tether_omega2: tether_omega.powi(2) as f32,
+            tether_damping: tether_zeta_2omega as f32,
             k_s: k_s as f32,
             k_sat: k_sat as f32,
             n_sat: n_sat as f32,

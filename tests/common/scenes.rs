@@ -140,3 +140,22 @@ pub fn sliding_block(mu: Option<f64>, v0: f64, gravity: [f64; 3]) -> Scenario {
     );
     Scenario::from_str_named(&text, "sliding_block.ron").expect("test scene is valid")
 }
+
+/// A 2-cm perfused cube (Δx = 4 mm, nˢ/nˡ = 0.6/0.4) at z ∈ [0, 2 cm] under gravity −z, nothing else
+/// but the scenario entries in `extra` (a bed, ligaments): 0.1 s, roomy domain.
+pub fn perfused_cube_under_gravity(name: &str, extra: &str) -> Scenario {
+    let text = format!(
+        r#"Scenario(
+        name: "{name}", dimensions: 3,
+        domain: Domain(min: (-0.03, -0.03, -0.03), max: (0.03, 0.03, 0.04)),
+        gravity: (0.0, 0.0, -9.81),
+        liquid: Some(Liquid(density: 1000.0, viscosity: 0.01, stiffness: Some(1e4))),
+        solid: Some(Solid(density: 1000.0, c10: 1e3, c01: 0.0, k_s: 1e4, n_sat: 0.6, k_sat: 1e4, friction: 1e5)),
+        numerics: Numerics(dx_solid: Some(0.004), dx_liquid: Some(0.004)),
+        particles: [ PerfusedBlock(min: (-0.01, -0.01, 0.0), max: (0.01, 0.01, 0.02), solid_fraction: 0.6, liquid_fraction: 0.4) ],
+        {extra}
+        duration: 0.1,
+    )"#
+    );
+    Scenario::from_str_named(&text, &format!("{name}.ron")).expect("test scene is valid")
+}

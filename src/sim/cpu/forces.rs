@@ -484,6 +484,11 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                 });
                 a += f / s.m[i];
             }
+            // Ligament spring and dashpot to the anchor X (`Scenario::ligaments`): −ω²(x − X) − 2ζω v.
+            if s.flags[i] & SolidFlags::TETHERED != 0 {
+                let d = super::grid::min_image(xi - s.x_ref[i], period);
+                a -= d * p.tether_omega2 + vi * p.tether_damping;
+            }
             a + c.gravity
         })
         .collect()

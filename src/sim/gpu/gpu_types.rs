@@ -102,6 +102,11 @@ pub struct SimParams {
     pub dt_upper: f32,
     /// Hourglass-control coefficient c (`numerics.hourglass`); 0: off.
     pub hourglass: f32,
+    /// Ligament springs (`Params::tether_omega2`, `tether_damping`): ω² [1/s²], 2ζω [1/s].
+    pub tether_omega2: f32,
+    pub tether_damping: f32,
+    pub _pad0: f32,
+    pub _pad1: f32,
 }
 
 /// Set counts of a scene, as the uniform block carries them.
@@ -176,6 +181,10 @@ impl SimParams {
             cohesion_lb: p.cohesion_lb,
             dt_upper: p.dt_upper(),
             hourglass: p.hourglass,
+            tether_omega2: p.tether_omega2,
+            tether_damping: p.tether_damping,
+            _pad0: 0.0,
+            _pad1: 0.0,
         }
     }
 }
@@ -392,7 +401,7 @@ pub struct GridSet {
 }
 
 const _: () = assert!(size_of::<KernelConsts>() == 32);
-const _: () = assert!(size_of::<SimParams>() == 416);
+const _: () = assert!(size_of::<SimParams>() == 432);
 const _: () = assert!(size_of::<StepState>() == 48);
 const _: () = assert!(size_of::<ObjectGpu>() == 96);
 const _: () = assert!(size_of::<Mat3Gpu>() == 48);
