@@ -87,6 +87,47 @@ fn offscreen_frame_shows_blood_tissue_and_background() {
     });
 }
 
+/// A moulded bed (`Boundary::mould`) is drawn as its particles, not as its box: the bed particle
+/// nearest the camera shows the bed's pale pinkish grey, and a point inside the bed's box but beside
+/// the tissue's footprint (no bed particle there) shows the background.
+#[test]
+fn a_moulded_bed_is_drawn_as_its_particles() {
+    gpu_test("a_moulded_bed_is_drawn_as_its_particles", |ctx| {
+        let sc = common::scenes::perfused_cube_under_gravity(
+            "bed_render",
+            r#"boundaries: [ Boundary(name: "bed", shape: Box(min: (-0.025, -0.025, -0.02), max: (0.025, 0.025, 0.01)),
+                                   mould: Some(Mould(clearance: 0.004, depth: 0.008))) ],"#,
+        );
+        let sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+        let poses = sim.object_poses();
+        let bed = &poses[0].bed;
+        assert!(poses[0].moulded && !bed.is_empty(), "the bed's particles go with its pose");
+        let mut renderer = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+        let size = (480, 360);
+        let origin = sim.params().origin;
+        let rel =
+            |p: [f64; 3]| Vec3::new((p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32);
+        let cam = OrbitCamera::fit(rel([-0.025, -0.025, -0.02]), rel([0.025, 0.025, 0.02]), false, Vec3::Z);
+        let img = snapshot::render_image(&sim, &ctx, &mut renderer, &cam, size).expect("render");
+        img.save(artifact("render_moulded_bed.png")).expect("png");
+        let px = |p: [f64; 3]| {
+            let (x, y) = project(&cam, size, origin, p);
+            img.get_pixel(x.min(size.0 - 1), y.min(size.1 - 1)).0
+        };
+        let eye = cam.eye();
+        let nearest = bed
+            .iter()
+            .min_by(|a, b| (rel(**a) - eye).length().total_cmp(&(rel(**b) - eye).length()))
+            .expect("a bed particle");
+        let bg = img.get_pixel(2, 2).0;
+        let b = px(*nearest);
+        assert!(b != bg && b[0] > b[2] && b[0] > 40, "bed pixel {b:?} (background {bg:?})");
+        // inside the bed's box, 2 cm beside the block: no particle there, and the box is not drawn
+        let beside = px([0.022, -0.022, 0.0]);
+        assert_eq!(beside, bg, "the bed's box is not drawn");
+    });
+}
+
 /// A ball of blood alone, seen straight on.
 const BLOB: &str = r#"
 Scenario(

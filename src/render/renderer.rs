@@ -73,6 +73,11 @@ pub struct Scene<'a> {
     pub dx_liquid: f32,
 }
 
+/// Radius of a moulded bed's balls over Δx_s: neighbours on its lattice overlap into one surface.
+const BED_BALL: f32 = 0.6;
+/// Linear RGBA of a moulded bed (the abdominal organs under the liver: pale, pinkish grey).
+const BED_COLOUR: [f32; 4] = [0.36, 0.27, 0.26, 1.0];
+
 /// Why the renderer could not be built or could not draw.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -534,8 +539,19 @@ impl Renderer {
         let mut translucent = Vec::new();
         for pose in scene.objects {
             let tool = pose.tool.is_some();
-            // a moulded bed's box only bounds its particles: drawing it would hide the organ in it
-            if pose.moulded || (!tool && !self.settings.show_walls) {
+            if !tool && !self.settings.show_walls {
+                continue;
+            }
+            // a moulded bed's box only bounds its particles (drawing it would hide the organ in it):
+            // its particles are drawn instead, as overlapping balls — the abdominal organs' surface
+            if pose.moulded {
+                let r = [BED_BALL * scene.dx_solid, 0.0, 0.0, 0.0];
+                opaque.extend(pose.bed.iter().map(|p| ShapeGpu {
+                    a: sim(*p),
+                    b: r,
+                    colour: BED_COLOUR,
+                    kind: [1, 0, 0, 0],
+                }));
                 continue;
             }
             let colour = if tool { [0.62, 0.64, 0.68, 1.0] } else { [0.55, 0.58, 0.62, 0.35] };

@@ -39,6 +39,9 @@ pub struct BoundaryObject {
     /// A bed moulded to the tissue (`Boundary::mould`): its particles are not its shape's lattice, so
     /// it gets no contact projection and is not drawn as its shape.
     pub moulded: bool,
+    /// A moulded bed's particles at rest (absolute coordinates): what the renderer draws of it.
+    #[serde(default)]
+    pub bed: Vec<V3>,
 }
 
 /// Everything a back-end needs to build its initial state, plus the derived per-phase sizes.
@@ -369,6 +372,7 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             let fixed: Vec<bool> = g.solid_flags.iter().map(|f| f & SolidFlags::KINEMATIC != 0).collect();
             points = moulded_bed(points, &g.solid.pos, &fixed, s.gravity, m, sp);
         }
+        let bed = if b.mould.is_some() { points.clone() } else { Vec::new() };
         for p in points {
             g.boundary_pos.push(p);
             g.boundary_object.push(k as u32);
@@ -384,6 +388,7 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             spacing: sp,
             tool: b.tool.clone(),
             moulded: b.mould.is_some(),
+            bed,
         });
     }
     for e in &s.emitters {

@@ -134,6 +134,8 @@ pub struct ObjectPose {
     pub tool: Option<crate::scenario::Tool>,
     /// A bed moulded to the tissue (`Boundary::mould`): its shape only bounds its particles.
     pub moulded: bool,
+    /// A moulded bed's particles (scenario coordinates; a bed is static), drawn instead of its shape.
+    pub bed: Vec<V3>,
 }
 
 /// Shift of the rest positions that keeps an object in place when its motion changes from one whose
@@ -172,6 +174,7 @@ pub(crate) fn object_pose(
         velocity: v,
         tool: object.tool.clone(),
         moulded: object.moulded,
+        bed: object.bed.clone(),
     }
 }
 
