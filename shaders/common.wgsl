@@ -95,8 +95,9 @@ struct SimParams {
     // ligament springs of tethered solid particles: ω² [1/s²], 2ζω [1/s] (0: none)
     tether_omega2: f32,
     tether_damping: f32,
+    // membrane (capsule) particles' C10, C01 over the tissue's (1: as the tissue)
+    membrane_stiffness: f32,
     _pad0: f32,
-    _pad1: f32,
 }
 
 // Mirrors `StepState`: the GPU-resident Δt (SPEC §5.3) and the step status bitmask (STYLE §5.4).

@@ -99,7 +99,9 @@ fn solid_stress(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (i >= params.counts.y) {
         return;
     }
-    let t = mooney_rivlin_tau(m3_load(solid_f[i]), params.c10, params.c01);
+    // a membrane (capsule) particle's C10, C01 are the tissue's times membrane_stiffness
+    let k = select(1.0, params.membrane_stiffness, (solid_flags[i] & SOLID_MEMBRANE) != 0u);
+    let t = mooney_rivlin_tau(m3_load(solid_f[i]), params.c10 * k, params.c01 * k);
     let d = solid_dens[i];
     let sigma = m3_sub(t, m3_scale(m3_identity(), d.z * d.w));
     let art = artificial_stress(sigma, d.x, params.as_eps);

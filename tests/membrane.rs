@@ -131,3 +131,36 @@ fn capsule_children_are_fixed_with_their_parent() {
         }
     }
 }
+
+/// A stiffer capsule (`membrane.stiffness`, README: deviations): `solid_stress` gives a membrane
+/// particle k times the Mooney–Rivlin τ of a tissue particle under the same deformation (τ is linear in
+/// C10 and C01), and leaves the tissue's unchanged.
+#[test]
+fn a_stiffer_capsule_scales_the_membrane_stress_only() {
+    use glam::Mat3;
+    use perfuse::sim::cpu::{CpuSolver, solid};
+    use perfuse::sim::params::Params;
+    let k = 10.0f32;
+    let mut sc = specimen_ci();
+    sc.membrane.as_mut().expect("specimen has a capsule").stiffness = k as f64;
+    let g = perfuse::scenario::generate(&sc);
+    let mut cpu = CpuSolver::new(Params::new(&sc, &g), &g).expect("CPU solver");
+    assert_eq!(cpu.params.membrane_stiffness, k);
+    let f = Mat3::from_cols_array(&[1.05, 0.02, 0.0, 0.08, 0.97, 0.01, 0.0, -0.03, 1.02]);
+    let s = &mut cpu.st.solid;
+    s.def_grad.iter_mut().for_each(|d| *d = f);
+    solid::solid_stress(&cpu.params, s);
+    let plain = solid::mooney_rivlin_tau(f, cpu.params.c10, cpu.params.c01);
+    let (mut n_mem, mut n_plain) = (0, 0);
+    for (i, tau) in s.tau.iter().enumerate() {
+        let membrane = s.flags[i] & SolidFlags::MEMBRANE != 0;
+        let want = if membrane { plain * k } else { plain };
+        let err = (*tau - want).abs().to_cols_array().into_iter().fold(0.0f32, f32::max);
+        assert!(
+            err <= 1e-5 * want.abs().to_cols_array().into_iter().fold(0.0f32, f32::max),
+            "particle {i}: {tau} vs {want}"
+        );
+        if membrane { n_mem += 1 } else { n_plain += 1 }
+    }
+    assert!(n_mem > 0 && n_plain > 0, "{n_mem} membrane, {n_plain} plain");
+}

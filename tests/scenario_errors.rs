@@ -312,6 +312,33 @@ fn ligament_errors() {
     }
 }
 
+/// The capsule's stiffness ratio: below 1 (softer than the tissue it wraps), and so stiff that its
+/// elastic waves outrun the scenario's numerical sound speed, are refused, naming the field.
+#[test]
+fn capsule_stiffness_errors() {
+    let liver_path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenarios/liver.ron");
+    let liver = std::fs::read_to_string(liver_path).expect("liver.ron");
+    let line = liver.lines().find(|l| l.trim_start().starts_with("membrane: Some(")).expect("liver.ron has a capsule");
+    for (ratio, needles) in [
+        ("0.5", &["membrane.stiffness", "[1, 1000]"][..]),
+        // √(4/3 · 2 kPa · 100 / 1060 kg/m³) ≈ 15.9 m/s > sound_speed_solid = 10 m/s
+        ("100.0", &["membrane.stiffness", "15.86 m/s", "sound_speed_solid"][..]),
+    ] {
+        let membrane = format!(
+            "    membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483, stiffness: {ratio})),"
+        );
+        let text = liver.replacen(line, &membrane, 1);
+        match Scenario::from_str_named(&text, liver_path) {
+            Ok(_) => panic!("expected an error for stiffness {ratio}"),
+            Err(e) => {
+                for needle in needles {
+                    assert!(e.to_string().contains(needle), "expected `{needle}` in: {e}");
+                }
+            }
+        }
+    }
+}
+
 /// Organ meshes and the new sections: a missing mesh file, a mesh in a 2-D scenario, a mesh placed
 /// outside the domain, an absurd tool speed, a blade on an indenter, a critical stretch below 1, a bad
 /// physiology scale.

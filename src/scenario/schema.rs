@@ -603,10 +603,19 @@ pub struct Membrane {
     pub radius: f64,
     /// θ₀ [rad] of the first child (default π/4).
     pub angle: f64,
+    /// Capsule stiffness: the membrane particles' C10 and C01 over the tissue's (default 1, the
+    /// thesis's membrane of plain solid particles, §3.1.3). Glisson's capsule is a collagenous sheet far
+    /// stiffer than the parenchyma; one particle layer Δx_s thick stands for a sheet tens of µm thick,
+    /// so a ratio > 1 gives that layer a sheet stiffness of the capsule's order (README: deviations).
+    #[serde(default = "unit_ratio")]
+    pub stiffness: f64,
+}
+fn unit_ratio() -> f64 {
+    1.0
 }
 impl Default for Membrane {
     fn default() -> Self {
-        Membrane { threshold: 0.5, count: 3, radius: 0.5, angle: std::f64::consts::FRAC_PI_4 }
+        Membrane { threshold: 0.5, count: 3, radius: 0.5, angle: std::f64::consts::FRAC_PI_4, stiffness: 1.0 }
     }
 }
 

@@ -589,6 +589,27 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
         Check::range("membrane.threshold", m.threshold, 0.05, 2.0, "δ_mem/Δx_s; 0.5 selects the outer layer")?;
         Check::range("membrane.radius", m.radius, 0.0, 1.0, "r_e/Δx_s, e.g. 0.5")?;
         Check::finite("membrane.angle", m.angle)?;
+        Check::range(
+            "membrane.stiffness",
+            m.stiffness,
+            1.0,
+            1000.0,
+            "the capsule's C10, C01 over the tissue's, e.g. 1 (thesis) or 10",
+        )?;
+        // The capsule's elastic waves must stay below the numerical sound speed when one is given (as
+        // the derived one includes them, `Params::new`).
+        if let (Some(mat), Some(c)) = (&s.solid, s.numerics.sound_speed_solid) {
+            let wave = (4.0 / 3.0 * 2.0 * (mat.c10 + mat.c01) * m.stiffness / mat.density).sqrt();
+            if wave > c {
+                return Err(Check::fail(
+                    "membrane.stiffness",
+                    format!(
+                        "the capsule's elastic wave speed {wave:.2} m/s exceeds numerics.sound_speed_solid = {c} m/s"
+                    ),
+                    "lower the ratio, or raise sound_speed_solid",
+                ));
+            }
+        }
         if m.count > 12 {
             return Err(Check::fail(
                 "membrane.count",

@@ -39,6 +39,8 @@ pub struct Params {
     /// Ligament springs of the tethered solid particles: ω² [1/s²] and 2ζω [1/s] (`ligaments`; 0: none).
     pub tether_omega2: f32,
     pub tether_damping: f32,
+    /// Membrane (capsule) particles' C10, C01 over the tissue's (`membrane.stiffness`; 1: none).
+    pub membrane_stiffness: f32,
     pub k_s: f32,
     pub k_sat: f32,
     pub n_sat: f32,
@@ -135,7 +137,9 @@ impl Params {
             None => (1000.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0),
         };
         let c_l = n.sound_speed_liquid.unwrap_or((k_l / rho0_l).sqrt());
-        let g_mod = 2.0 * (c10 + c01);
+        // the stiffest solid particles set the derived sound speed: the capsule's when it is stiffer
+        let capsule = s.membrane.as_ref().map_or(1.0, |m| m.stiffness.max(1.0));
+        let g_mod = 2.0 * (c10 + c01) * capsule;
         let n0s = if g.fraction_solid > 0.0 { g.fraction_solid } else { 1.0 };
         let c_s = n.sound_speed_solid.unwrap_or(((k_s + k_sat) / rho0_s + 4.0 / 3.0 * g_mod / (n0s * rho0_s)).sqrt());
         let c_max = if has_liquid { c_l } else { 0.0 }.max(if solid_dynamic { c_s } else { 0.0 });
@@ -213,6 +217,7 @@ impl Params {
             hourglass: n.hourglass.unwrap_or(0.0) as f32,
             tether_omega2: tether_omega.powi(2) as f32,
             tether_damping: tether_zeta_2omega as f32,
+            membrane_stiffness: capsule as f32,
             k_s: k_s as f32,
             k_sat: k_sat as f32,
             n_sat: n_sat as f32,

@@ -105,8 +105,9 @@ pub struct SimParams {
     /// Ligament springs (`Params::tether_omega2`, `tether_damping`): ω² [1/s²], 2ζω [1/s].
     pub tether_omega2: f32,
     pub tether_damping: f32,
+    /// `Params::membrane_stiffness`: capsule C10, C01 over the tissue's.
+    pub membrane_stiffness: f32,
     pub _pad0: f32,
-    pub _pad1: f32,
 }
 
 /// Set counts of a scene, as the uniform block carries them.
@@ -183,8 +184,8 @@ impl SimParams {
             hourglass: p.hourglass,
             tether_omega2: p.tether_omega2,
             tether_damping: p.tether_damping,
+            membrane_stiffness: p.membrane_stiffness,
             _pad0: 0.0,
-            _pad1: 0.0,
         }
     }
 }

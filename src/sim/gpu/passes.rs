@@ -104,7 +104,7 @@ pub const DENSITY_SOLID: PassSpec = pass(
     Dispatch::Solid,
 );
 pub const SOLID_STRESS: PassSpec =
-    pass("solid_stress", "solid", &[Params, SolidDefGrad, SolidDens, SolidStress], Dispatch::Solid);
+    pass("solid_stress", "solid", &[Params, SolidDefGrad, SolidDens, SolidStress, SolidFlags], Dispatch::Solid);
 /// The best affine fit of each particle's bonds for the hourglass control (a no-op when it is off).
 pub const SOLID_FIT: PassSpec = pass(
     "solid_fit",
