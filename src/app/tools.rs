@@ -227,7 +227,7 @@ mod tests {
             velocity: [0.0; 3],
             tool: Some(crate::scenario::Tool { kind: ToolKind::Scalpel, max_speed: 0.2, blade_cut: false }),
             moulded: false,
-            bed: Vec::new(),
+            bed: Default::default(),
         };
         let objects = [pose];
         let scene = ToolScene {

@@ -113,8 +113,7 @@ pub fn frame_vtu_bytes(state: &State, params: &Params) -> Vec<u8> {
         .map(|i| {
             let f = ex.def_grad.get(i).copied().unwrap_or(Mat3::IDENTITY);
             // the capsule's particles are `membrane_stiffness` times stiffer (`solid_stress`)
-            let membrane = ex.flags.get(i).is_some_and(|f| f & crate::scenario::SolidFlags::MEMBRANE != 0);
-            let k = if membrane { params.membrane_stiffness } else { 1.0 };
+            let k = params.stiffness_factor(ex.flags.get(i).copied().unwrap_or(0));
             cauchy_stress(f, sol.n_s[i], sol.p[i], params.c10 * k, params.c01 * k)
         })
         .collect();

@@ -39,9 +39,10 @@ pub struct BoundaryObject {
     /// A bed moulded to the tissue (`Boundary::mould`): its particles are not its shape's lattice, so
     /// it gets no contact projection and is not drawn as its shape.
     pub moulded: bool,
-    /// A moulded bed's particles at rest (absolute coordinates): what the renderer draws of it.
+    /// A moulded bed's particles at rest (absolute coordinates): what the renderer draws of it. Shared,
+    /// so that the poses published with every frame do not copy it.
     #[serde(default)]
-    pub bed: Vec<V3>,
+    pub bed: std::sync::Arc<[V3]>,
 }
 
 /// Everything a back-end needs to build its initial state, plus the derived per-phase sizes.
@@ -372,7 +373,7 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             let fixed: Vec<bool> = g.solid_flags.iter().map(|f| f & SolidFlags::KINEMATIC != 0).collect();
             points = moulded_bed(points, &g.solid.pos, &fixed, s.gravity, m, sp);
         }
-        let bed = if b.mould.is_some() { points.clone() } else { Vec::new() };
+        let bed = if b.mould.is_some() { points.as_slice().into() } else { std::sync::Arc::default() };
         for p in points {
             g.boundary_pos.push(p);
             g.boundary_object.push(k as u32);

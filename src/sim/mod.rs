@@ -135,7 +135,7 @@ pub struct ObjectPose {
     /// A bed moulded to the tissue (`Boundary::mould`): its shape only bounds its particles.
     pub moulded: bool,
     /// A moulded bed's particles (scenario coordinates; a bed is static), drawn instead of its shape.
-    pub bed: Vec<V3>,
+    pub bed: std::sync::Arc<[V3]>,
 }
 
 /// Shift of the rest positions that keeps an object in place when its motion changes from one whose

@@ -275,6 +275,12 @@ impl Params {
         [p.x as f64 + self.origin[0], p.y as f64 + self.origin[1], p.z as f64 + self.origin[2]]
     }
 
+    /// Factor on C10, C01 of a solid particle with these `SolidFlags`: `membrane_stiffness` for the
+    /// capsule, 1 for the tissue (`solid_stress` and its WGSL twin).
+    pub fn stiffness_factor(&self, flags: u32) -> f32 {
+        if flags & crate::scenario::SolidFlags::MEMBRANE != 0 { self.membrane_stiffness } else { 1.0 }
+    }
+
     /// Upper bound of every Δt the step can take (fixed, or the sound and Δt_max bounds of (2.70) ×
     /// the CFL factor): the relaxation time of the stick regime of wall friction, so that friction never
     /// reverses a sliding velocity within one step (`cpu::forces::wall_friction`).

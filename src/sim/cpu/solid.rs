@@ -9,7 +9,6 @@
 //!   (`numerics.hourglass`; README: deviations from SPEC).
 
 use super::SolidSet;
-use crate::scenario::SolidFlags;
 use crate::sim::params::Params;
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
@@ -152,9 +151,8 @@ pub fn solid_fit(p: &Params, s: &SolidSet) -> Vec<Mat3> {
 /// C10, C01 are the tissue's times `membrane_stiffness`.
 pub fn solid_stress(p: &Params, s: &mut SolidSet) {
     let (c10, c01, eps) = (p.c10, p.c01, p.as_eps);
-    let cap = p.membrane_stiffness;
     s.tau.par_iter_mut().zip(s.art.par_iter_mut()).enumerate().for_each(|(i, (tau, art))| {
-        let k = if s.flags[i] & SolidFlags::MEMBRANE != 0 { cap } else { 1.0 };
+        let k = p.stiffness_factor(s.flags[i]);
         let t = mooney_rivlin_tau(s.def_grad[i], c10 * k, c01 * k);
         *tau = t;
         let sigma = t - Mat3::IDENTITY * (s.n_s[i] * s.p[i]);
