@@ -117,6 +117,7 @@ fn batch_motion() {
         o.kind = m.kind;
         o.blade = u32(m.rest_a.w);
         o.friction = m.friction;
+        o.bed = m.bed;
         objects[k] = o;
     }
     // Inlet buffer velocities u(tⁿ⁺¹) = direction · Q(tⁿ⁺¹) · L/(N·V_p) (twin: emit::emit_velocities).

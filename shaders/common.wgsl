@@ -135,7 +135,8 @@ struct ObjectGpu {
     blade: u32,
     // Coulomb μ of solid contact (0: frictionless)
     friction: f32,
-    _pad0: u32,
+    // 1 + the index of a moulded bed's heightfield in bed_table; 0: none
+    bed: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -156,7 +157,8 @@ struct MotionGpu {
     // 0 static, 1 translate, 2 oscillate
     motion: u32,
     friction: f32,
-    _pad0: u32,
+    // ObjectGpu.bed
+    bed: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -362,6 +364,9 @@ const JACOBI_SWEEPS: u32 = 6u;
 // best affine fit F̃ of each particle's bonds
 @group(0) @binding(47) var<storage, read_write> solid_pos_ref: array<vec4<f32>>;
 @group(0) @binding(48) var<storage, read_write> solid_affine: array<Mat3Gpu>;
+// the moulded beds' heightfields (twin: src/sim/bed.rs BedTable): per bed BED_HEADER words, then the
+// column tops; ObjectGpu.bed = 1 + its header's index
+@group(0) @binding(49) var<storage, read_write> bed_table: array<f32>;
 
 // ---- emitters (twin: src/sim/cpu/emit.rs) ----
 const FLOW_MAX: u32 = 1024u;

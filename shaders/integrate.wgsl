@@ -67,9 +67,102 @@ fn integrate_predict_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
+// Contact with a moulded bed's surface (twin: sim::bed::bed_contact, same f32 operations): when x lies
+// in one of the bed's lattice columns, below its top and above the bed's lower face, the nearest way
+// out — up onto the column's top, or sideways through a face whose neighbour column is empty or lower
+// than x. `off` is the bed's header in bed_table. Returns hit (w = 1) with the new position in .xyz of
+// `x`, and the normal in `n`.
+const BED_HEADER: u32 = 11u;
+const BED_EMPTY: f32 = -3.0e38;
+
+struct BedHit {
+    x: vec3<f32>,
+    n: vec3<f32>,
+    hit: bool,
+}
+
+fn bed_top(off: u32, na: i32, nb: i32, a: i32, b: i32) -> f32 {
+    if (a < 0 || b < 0 || a >= na || b >= nb) {
+        return BED_EMPTY;
+    }
+    return bed_table[off + BED_HEADER + u32(b * na + a)];
+}
+
+fn bed_contact(off: u32, x: vec3<f32>, three_d: bool) -> BedHit {
+    var r = BedHit(x, vec3<f32>(0.0), false);
+    let sp = bed_table[off];
+    let inv_sp = bed_table[off + 1u];
+    let lo_a = bed_table[off + 2u];
+    let lo_b = bed_table[off + 3u];
+    let bottom = bed_table[off + 4u];
+    let up = bitcast<u32>(bed_table[off + 5u]);
+    let la = bitcast<u32>(bed_table[off + 6u]);
+    let lb = bitcast<u32>(bed_table[off + 7u]);
+    let sgn = bed_table[off + 8u];
+    let na = i32(bitcast<u32>(bed_table[off + 9u]));
+    let nb = i32(bitcast<u32>(bed_table[off + 10u]));
+    let fa = floor((x[la] - lo_a) * inv_sp);
+    var fb = 0.0;
+    if (three_d) {
+        fb = floor((x[lb] - lo_b) * inv_sp);
+    }
+    if (!(fa >= 0.0 && fb >= 0.0 && fa < f32(na) && fb < f32(nb))) {
+        return r;
+    }
+    let ka = i32(fa);
+    let kb = i32(fb);
+    let h = sgn * x[up];
+    let top = bed_top(off, na, nb, ka, kb);
+    if (!(h > bottom && h < top)) {
+        return r;
+    }
+    var best = top - h;
+    var axis = up;
+    var to = sgn * top;
+    var side = sgn;
+    // sideways along la, then lb (3-D): the low face, then the high one, each only when the neighbour
+    // column beyond it does not cover h
+    for (var lat = 0u; lat < 2u; lat++) {
+        if (lat == 1u && !three_d) {
+            break;
+        }
+        var a = la;
+        var k = ka;
+        var lo = lo_a;
+        var lower = bed_top(off, na, nb, ka - 1, kb);
+        var higher = bed_top(off, na, nb, ka + 1, kb);
+        if (lat == 1u) {
+            a = lb;
+            k = kb;
+            lo = lo_b;
+            lower = bed_top(off, na, nb, ka, kb - 1);
+            higher = bed_top(off, na, nb, ka, kb + 1);
+        }
+        let e0 = lo + f32(k) * sp;
+        let e1 = lo + f32(k + 1) * sp;
+        if (x[a] - e0 < best && lower <= h) {
+            best = x[a] - e0;
+            axis = a;
+            to = e0;
+            side = -1.0;
+        }
+        if (e1 - x[a] < best && higher <= h) {
+            best = e1 - x[a];
+            axis = a;
+            to = e1;
+            side = 1.0;
+        }
+    }
+    r.x[axis] = to;
+    r.n[axis] = side;
+    r.hit = true;
+    return r;
+}
+
 // Contact with the rigid boundary objects at tⁿ⁺¹ (twin: cpu::integrate::object_contact): a particle
 // inside an object's shape goes back onto the nearest face (box) or the sphere, and the inward part of
-// its velocity relative to the object is removed. Returns the new position (xyz) and velocity.
+// its velocity relative to the object is removed; a moulded bed (kind 2 with a heightfield) uses
+// bed_contact. Returns the new position (xyz) and velocity.
 struct Contact {
     x: vec3<f32>,
     v: vec3<f32>,
@@ -118,6 +211,13 @@ fn object_contact(x_in: vec3<f32>, v_in: vec3<f32>) -> Contact {
                     n = vec3<f32>(0.0, 1.0, 0.0);
                 }
                 x = o.geom_a.xyz + n * o.geom_b.x;
+            }
+        } else if (o.bed != 0u) {
+            let b = bed_contact(o.bed - 1u, x, dims == 3);
+            if (b.hit) {
+                inside = true;
+                x = b.x;
+                n = b.n;
             }
         }
         if (inside) {

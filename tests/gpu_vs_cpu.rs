@@ -694,3 +694,69 @@ fn default_liver_matches_cpu() {
         assert_eq!(gs.broken_bonds(), cs.broken_bonds(), "broken bonds");
     });
 }
+
+/// How far the deepest particle of `x` lies inside a moulded bed's surface (`sim::bed`), over the beds
+/// of `cpu`'s scene.
+fn deepest_in_bed(cpu: &CpuSolver, x: &[Vec3]) -> f32 {
+    let t = &cpu.beds;
+    let three_d = cpu.params.dim.n() == 3;
+    let mut deepest = 0.0f32;
+    for &off in t.offsets.iter().filter(|o| **o > 0) {
+        for p in x {
+            if let Some((y, _)) = perfuse::sim::bed::bed_contact(&t.data, off as usize - 1, *p, three_d) {
+                deepest = deepest.max((y - *p).length());
+            }
+        }
+    }
+    deepest
+}
+
+/// A perfused block thrown at 1.5 m/s onto the bed moulded under it: the bed's surface (its lattice
+/// columns' tops) stops tissue and blood on both back-ends alike, where the bed's particles alone
+/// (the same scene with the surface removed) let them in.
+#[test]
+fn a_moulded_bed_stops_what_is_thrown_at_it() {
+    gpu_test("a_moulded_bed_stops_what_is_thrown_at_it", |ctx| {
+        let text = r#"Scenario(
+            name: "gpu_test_bed", dimensions: 3,
+            domain: Domain(min: (0.0, 0.0, 0.0), max: (0.006, 0.006, 0.006)),
+            gravity: (0.0, 0.0, -9.81),
+            liquid: Some(Liquid(density: 1000.0, viscosity: 0.01, sound_speed: Some(2.0))),
+            solid: Some(Solid(density: 1000.0, c10: 1000.0, c01: 100.0, k_s: 10000.0, n_sat: 0.5,
+                              k_sat: 1000.0, friction: 10000.0)),
+            numerics: Numerics(dx_liquid: Some(5.0e-4), dx_solid: Some(5.0e-4), h_over_dx: 1.3),
+            particles: [
+                Box(phase: Solid, min: (0.0015, 0.0015, 0.002), max: (0.0045, 0.0045, 0.0035), fraction: 0.5,
+                    velocity: Some(Uniform((0.0, 0.0, -1.5)))),
+                Box(phase: Liquid, min: (0.0015, 0.0015, 0.002), max: (0.0045, 0.0045, 0.0035), fraction: 0.5,
+                    velocity: Some(Uniform((0.0, 0.0, -1.5)))),
+            ],
+            boundaries: [ Boundary(name: "bed", shape: Box(min: (0.0, 0.0, 0.0), max: (0.006, 0.006, 0.002)),
+                                   mould: Some(Mould(clearance: 5.0e-4, depth: 1.5e-3))) ],
+            duration: 0.01,
+        )"#;
+        let sc = perfuse::scenario::Scenario::from_str_named(text, "gpu_test_bed.ron").expect("test scene is valid");
+        let mut cpu = solver_for(&sc);
+        assert!(cpu.beds.offsets == [1], "the bed has a surface");
+        let mut bare = solver_for(&sc);
+        bare.beds = perfuse::sim::bed::BedTable::default();
+        let mut gpu = gpu_from(ctx, &cpu);
+        let steps = 150;
+        let (gs, cs, d_x) = step_both(&mut cpu, &mut gpu, steps);
+        let bs = stepped(bare, steps).read_state();
+        let h = cpu.params.k_solid.h;
+        let all = |s: &perfuse::sim::State| s.solid.pos.iter().chain(&s.liquid.pos).copied().collect::<Vec<_>>();
+        let (deep_c, deep_g, deep_b) =
+            (deepest_in_bed(&cpu, &all(&cs)), deepest_in_bed(&cpu, &all(&gs)), deepest_in_bed(&cpu, &all(&bs)));
+        eprintln!(
+            "block thrown onto its bed, {steps} steps (t = {:.3e} s): deepest inside the surface cpu {deep_c:.2e} m, \
+             gpu {deep_g:.2e}, without the surface {deep_b:.2e} ({:.2} Δx); max |Δx| gpu–cpu {d_x:.3e} m ({:.3e} h)",
+            cs.t,
+            deep_b / 5e-4,
+            d_x / h
+        );
+        assert!(deep_b > 0.2 * 5e-4, "the throw does not reach into the bed: the test checks nothing");
+        assert!(deep_c <= 1e-6 && deep_g <= 1e-6, "particles inside the bed");
+        assert!(d_x <= 1e-3 * h, "positions diverged");
+    });
+}

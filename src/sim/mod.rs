@@ -5,6 +5,7 @@
 //! ([`Simulation::read_state`]). A diverging run (non-finite values, runaway velocity, collapsing Δt)
 //! returns [`SimError::Diverged`] and keeps the last good state.
 
+pub mod bed;
 pub mod cardio;
 pub mod cpu;
 pub mod frame;

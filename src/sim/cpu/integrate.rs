@@ -6,6 +6,7 @@
 use super::CpuState;
 use super::forces::{ObjectGeom, nearest_face};
 use crate::scenario::SolidFlags;
+use crate::sim::bed::{self, BedTable};
 use crate::sim::params::Params;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -65,12 +66,13 @@ pub fn wrap_periodic(p: &Params, mut x: Vec3) -> Vec3 {
 /// that points into the object is removed (inelastic normal contact; the tangential part is left to
 /// the no-slip viscous term). The virtual particles alone cannot guarantee this: blood that has left
 /// the tissue is pressureless until it is compressed to nˡ = 1 (2.53 clamped at 0), so it falls
-/// through a plate's particle layers. Objects of kind 2 (no shape) are skipped. Twin of
+/// through a plate's particle layers. A bed moulded to the tissue (kind 2, no shape) has the surface of
+/// its lattice columns instead (`bed::bed_contact`, from `beds`); other objects of kind 2 are skipped. Twin of
 /// `object_contact` in `shaders/integrate.wgsl`, in the same f32 operations.
 #[inline]
-pub fn object_contact(geoms: &[ObjectGeom], vel: &[Vec3], three_d: bool, x: &mut Vec3, v: &mut Vec3) {
+pub fn object_contact(geoms: &[ObjectGeom], vel: &[Vec3], beds: &BedTable, three_d: bool, x: &mut Vec3, v: &mut Vec3) {
     let dims = if three_d { 3 } else { 2 };
-    for (g, vo) in geoms.iter().zip(vel) {
+    for (k, (g, vo)) in geoms.iter().zip(vel).enumerate() {
         let mut n = Vec3::ZERO;
         let mut inside = false;
         if g.kind == 0 {
@@ -94,6 +96,11 @@ pub fn object_contact(geoms: &[ObjectGeom], vel: &[Vec3], three_d: bool, x: &mut
                 };
                 *x = g.a + n * g.b.x;
             }
+        } else if let Some(&off) = beds.offsets.get(k).filter(|o| **o > 0)
+            && let Some((y, normal)) = bed::bed_contact(&beds.data, off as usize - 1, *x, three_d)
+        {
+            inside = true;
+            (*x, n) = (y, normal);
         }
         if inside {
             let vn = (*v - *vo).dot(n);
@@ -107,7 +114,7 @@ pub fn object_contact(geoms: &[ObjectGeom], vel: &[Vec3], three_d: bool, x: &mut
 /// integrate_advance: xⁿ⁺¹ = xⁿ + Δt ṽⁿ + ½Δt²a⁰ (2.65), ρ^p = ρⁿ + Δt D⁰ (2.66), then
 /// [`object_contact`] against the objects at tⁿ⁺¹ (`geoms`, `vel`) for every particle that is not
 /// kinematic (inlet buffers, clamps).
-pub fn integrate_advance(p: &Params, st: &mut CpuState, dt: f32, geoms: &[ObjectGeom], vel: &[Vec3]) {
+pub fn integrate_advance(p: &Params, st: &mut CpuState, dt: f32, geoms: &[ObjectGeom], vel: &[Vec3], beds: &BedTable) {
     let half_dt2 = 0.5 * dt * dt;
     let three_d = p.dim.n() == 3;
     let l = &mut st.liquid;
@@ -117,7 +124,7 @@ pub fn integrate_advance(p: &Params, st: &mut CpuState, dt: f32, geoms: &[Object
         let adv = inlet.unwrap_or(vx[i]);
         *x = wrap_periodic(p, *x + adv * dt + a0[i] * half_dt2);
         if inlet.is_none() {
-            object_contact(geoms, vel, three_d, x, v);
+            object_contact(geoms, vel, beds, three_d, x, v);
         }
     });
     let s = &mut st.solid;
@@ -125,7 +132,7 @@ pub fn integrate_advance(p: &Params, st: &mut CpuState, dt: f32, geoms: &[Object
     s.x.par_iter_mut().zip(s.v.par_iter_mut()).enumerate().for_each(|(i, (x, v))| {
         *x = wrap_periodic(p, *x + dx[i]);
         if flags[i] & SolidFlags::KINEMATIC == 0 {
-            object_contact(geoms, vel, three_d, x, v);
+            object_contact(geoms, vel, beds, three_d, x, v);
         }
     });
     let flags = &s.flags;
@@ -169,20 +176,20 @@ mod tests {
     fn object_contact_projects_onto_the_surface() {
         let boxed = ObjectGeom { kind: 0, a: Vec3::new(-1.0, -1.0, -1.0), b: Vec3::new(1.0, 1.0, 0.0) };
         let (mut x, mut v) = (Vec3::new(0.5, 0.0, -0.1), Vec3::new(0.3, 0.2, -2.0));
-        object_contact(&[boxed], &[Vec3::ZERO], true, &mut x, &mut v);
+        object_contact(&[boxed], &[Vec3::ZERO], &BedTable::default(), true, &mut x, &mut v);
         assert_eq!(x, Vec3::new(0.5, 0.0, 0.0));
         assert_eq!(v, Vec3::new(0.3, 0.2, 0.0));
         // leaving already: the velocity is kept
         let (mut x, mut v) = (Vec3::new(0.0, 0.95, -0.5), Vec3::new(0.0, 1.0, 0.0));
-        object_contact(&[boxed], &[Vec3::ZERO], true, &mut x, &mut v);
+        object_contact(&[boxed], &[Vec3::ZERO], &BedTable::default(), true, &mut x, &mut v);
         assert_eq!((x, v), (Vec3::new(0.0, 1.0, -0.5), Vec3::new(0.0, 1.0, 0.0)));
         // a sphere moving at +x pushes the particle along with it
         let ball = ObjectGeom { kind: 1, a: Vec3::ZERO, b: Vec3::new(2.0, 0.0, 0.0) };
         let (mut x, mut v) = (Vec3::new(1.0, 0.0, 0.0), Vec3::ZERO);
-        object_contact(&[ball], &[Vec3::new(5.0, 0.0, 0.0)], true, &mut x, &mut v);
+        object_contact(&[ball], &[Vec3::new(5.0, 0.0, 0.0)], &BedTable::default(), true, &mut x, &mut v);
         assert_eq!((x, v), (Vec3::new(2.0, 0.0, 0.0), Vec3::new(5.0, 0.0, 0.0)));
         let (mut x, mut v) = (Vec3::new(3.0, 0.0, 0.0), Vec3::new(-1.0, 0.0, 0.0));
-        object_contact(&[ball], &[Vec3::ZERO], true, &mut x, &mut v);
+        object_contact(&[ball], &[Vec3::ZERO], &BedTable::default(), true, &mut x, &mut v);
         assert_eq!((x, v), (Vec3::new(3.0, 0.0, 0.0), Vec3::new(-1.0, 0.0, 0.0)));
     }
 }

@@ -173,6 +173,8 @@ pub struct CpuSolver {
     /// Each object's shape at rest (simulation coordinates); `geoms` is it at the current pose.
     shapes: Vec<forces::ObjectGeom>,
     pub geoms: Vec<forces::ObjectGeom>,
+    /// The moulded beds' surfaces (static: built once from the objects).
+    pub beds: crate::sim::bed::BedTable,
     /// Each object's velocity at the current pose (what its particles carry).
     pub object_vel: Vec<Vec3>,
     last_good: CpuState,
@@ -278,6 +280,7 @@ impl CpuSolver {
             liquid_density_generation: None,
             pool,
             geoms: shapes.clone(),
+            beds: crate::sim::bed::BedTable::build(&params, &g.objects),
             object_vel: vec![Vec3::ZERO; shapes.len()],
             shapes,
             params,
@@ -506,7 +509,7 @@ impl CpuSolver {
         let t0 = self.timers.lap("solid", t0);
         // 6 (first half): boundaries → tⁿ⁺¹, so that the advance meets the objects where they will be.
         self.move_boundaries(t_next);
-        integrate::integrate_advance(&self.params, &mut self.st, dt, &self.geoms, &self.object_vel);
+        integrate::integrate_advance(&self.params, &mut self.st, dt, &self.geoms, &self.object_vel, &self.beds);
         let t0 = self.timers.lap("integrate", t0);
         // 5½: sinks and emitters on xⁿ⁺¹ (issue 7).
         emit::emit_step(&self.params, &mut self.st, dt, t_next);

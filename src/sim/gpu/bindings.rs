@@ -64,11 +64,13 @@ pub enum Slot {
     /// of each particle's bonds (`solid_fit`).
     SolidPosRef,
     SolidAffine,
+    /// The moulded beds' heightfields (`sim::bed::BedTable`; static).
+    BedTable,
 }
 
 impl Slot {
     /// The slot with the highest binding number (sizes the slot table).
-    pub const LAST: Slot = Slot::SolidAffine;
+    pub const LAST: Slot = Slot::BedTable;
 
     /// Binding number in group 0 (common.wgsl).
     pub const fn binding(self) -> u32 {
@@ -127,6 +129,7 @@ impl Slot {
             Slot::GridBlockSums => "grid_block_sums",
             Slot::SolidPosRef => "solid_pos_ref",
             Slot::SolidAffine => "solid_affine",
+            Slot::BedTable => "bed_table",
         }
     }
 
@@ -173,5 +176,6 @@ mod tests {
         assert_eq!(Slot::LiquidId.binding(), 45);
         assert_eq!(Slot::GridBlockSums.binding(), 46);
         assert_eq!(Slot::SolidAffine.binding(), 48);
+        assert_eq!(Slot::BedTable.binding(), 49);
     }
 }

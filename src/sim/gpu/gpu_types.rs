@@ -230,7 +230,8 @@ pub struct ObjectGpu {
     /// 1 + the cut axis of a `blade_cut` scalpel (`cpu::fracture::blade_axis`); 0 for any other object.
     pub blade: u32,
     pub friction: f32,
-    pub _pad0: u32,
+    /// 1 + the index of a moulded bed's heightfield in `bed_table` (`sim::bed::BedTable::offsets`); 0: none.
+    pub bed: u32,
     pub _pad1: u32,
     pub _pad2: u32,
 }
@@ -248,7 +249,8 @@ pub struct MotionGpu {
     pub kind: u32,
     pub motion: u32,
     pub friction: f32,
-    pub _pad0: u32,
+    /// 1 + the index of a moulded bed's heightfield in `bed_table` (`sim::bed::BedTable::offsets`); 0: none.
+    pub bed: u32,
     pub _pad1: u32,
     pub _pad2: u32,
 }
@@ -460,6 +462,7 @@ pub const LAYOUTS: &[StructLayout] = &[
             ("density", offset_of!(ObjectGpu, density)),
             ("kind", offset_of!(ObjectGpu, kind)),
             ("friction", offset_of!(ObjectGpu, friction)),
+            ("bed", offset_of!(ObjectGpu, bed)),
         ],
     ),
     ("Mat3Gpu", size_of::<Mat3Gpu>(), &[("c1", offset_of!(Mat3Gpu, c1)), ("c2", offset_of!(Mat3Gpu, c2))]),
@@ -473,6 +476,7 @@ pub const LAYOUTS: &[StructLayout] = &[
             ("times", offset_of!(MotionGpu, times)),
             ("motion", offset_of!(MotionGpu, motion)),
             ("friction", offset_of!(MotionGpu, friction)),
+            ("bed", offset_of!(MotionGpu, bed)),
         ],
     ),
     (

@@ -97,6 +97,8 @@ pub struct GpuSolver {
     /// Each object's shape at rest (simulation coordinates), as `CpuSolver::shapes`.
     shapes: Vec<ObjectGeom>,
     contacts: Vec<ObjectContact>,
+    /// The moulded beds' surfaces (static; uploaded once as `bed_table`).
+    beds: crate::sim::bed::BedTable,
     boundary_x0: Vec<Vec3>,
     boundary_object: Vec<u32>,
     gravity: Vec3,
@@ -302,7 +304,7 @@ impl GpuSolver {
         let sp = SimParams::new(&params, counts, st.gravity, st.damping, gravity_liquid);
         solver_init.push((Slot::Params, bytes(&[sp])));
         solver_init.push((Slot::Step, bytes(&[StepState::default()])));
-        let objects = objects_at(&params, &st.objects, &shapes, &cpu.contacts, st.t);
+        let objects = objects_at(&params, &st.objects, &shapes, &cpu.contacts, &cpu.beds.offsets, st.t);
         solver_init.push((Slot::Objects, bytes(&objects)));
         let wg_template = [
             capacity.div_ceil(passes::WORKGROUP),
@@ -319,7 +321,11 @@ impl GpuSolver {
         (batch0.t_hi, batch0.t_lo, batch0.wg) = (clock[0], clock[1], wg_template);
         (batch0.n_liquid, batch0.emitted, batch0.sunk) = (counts.liquid, st.emit.emitted as u32, st.emit.sunk as u32);
         solver_init.push((Slot::Batch, bytes(&[batch0])));
-        solver_init.push((Slot::Motions, bytes(&motion_table(&params, &st.objects, &shapes, &cpu.contacts))));
+        solver_init.push((
+            Slot::Motions,
+            bytes(&motion_table(&params, &st.objects, &shapes, &cpu.contacts, &cpu.beds.offsets)),
+        ));
+        solver_init.push((Slot::BedTable, bytes(&cpu.beds.gpu_words())));
         solver_init.push((Slot::IndirectArgs, vec![0u8; 4 * 18]));
         for (slot, n) in [
             (Slot::LiquidOrder, capacity as usize),
@@ -363,6 +369,7 @@ impl GpuSolver {
             objects: st.objects.clone(),
             shapes,
             contacts: cpu.contacts.clone(),
+            beds: cpu.beds.clone(),
             boundary_x0: st.boundary.x0.clone(),
             boundary_object: st.boundary.object.clone(),
             gravity: st.gravity,
@@ -583,7 +590,7 @@ impl GpuSolver {
     }
 
     fn upload_objects(&self, t: f64) -> Result<(), GpuError> {
-        let objs = objects_at(&self.params, &self.objects, &self.shapes, &self.contacts, t);
+        let objs = objects_at(&self.params, &self.objects, &self.shapes, &self.contacts, &self.beds.offsets, t);
         if !objs.is_empty() {
             self.ctx.queue.write_buffer(self.buffer(Slot::Objects)?, 0, bytemuck::cast_slice(&objs));
         }
@@ -591,7 +598,7 @@ impl GpuSolver {
     }
 
     fn upload_motions(&self) -> Result<(), GpuError> {
-        let m = motion_table(&self.params, &self.objects, &self.shapes, &self.contacts);
+        let m = motion_table(&self.params, &self.objects, &self.shapes, &self.contacts, &self.beds.offsets);
         if !m.is_empty() {
             self.ctx.queue.write_buffer(self.buffer(Slot::Motions)?, 0, bytemuck::cast_slice(&m));
         }
@@ -1297,6 +1304,7 @@ fn objects_at(
     objects: &[BoundaryObject],
     shapes: &[ObjectGeom],
     modes: &[ObjectContact],
+    beds: &[u32],
     t: f64,
 ) -> Vec<ObjectGpu> {
     let three = params.dim.n() == 3;
@@ -1323,6 +1331,7 @@ fn objects_at(
                 kind: g.kind,
                 blade: blade_code(params, o),
                 friction: m.friction,
+                bed: beds.get(k).copied().unwrap_or(0),
                 ..ObjectGpu::default()
             }
         })
@@ -1341,6 +1350,7 @@ fn motion_table(
     objects: &[BoundaryObject],
     shapes: &[ObjectGeom],
     modes: &[ObjectContact],
+    beds: &[u32],
 ) -> Vec<MotionGpu> {
     use crate::scenario::Motion;
     let three = params.dim.n() == 3;
@@ -1372,6 +1382,7 @@ fn motion_table(
                 kind: g.kind,
                 motion,
                 friction: m.friction,
+                bed: beds.get(k).copied().unwrap_or(0),
                 ..MotionGpu::default()
             }
         })
@@ -1407,7 +1418,7 @@ pub fn motion_twin(m: &MotionGpu, t: [f32; 2]) -> (Vec3, Vec3) {
 /// The motion table entry of `o` (tests: the twin against `motion_at`).
 pub fn motion_entry(params: &Params, o: &BoundaryObject) -> MotionGpu {
     let shapes = object_shapes(params, std::slice::from_ref(o));
-    motion_table(params, std::slice::from_ref(o), &shapes, &[]).first().copied().unwrap_or_default()
+    motion_table(params, std::slice::from_ref(o), &shapes, &[], &[]).first().copied().unwrap_or_default()
 }
 
 /// `t` as the f32 clock pair of batch.wgsl.

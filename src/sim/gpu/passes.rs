@@ -210,13 +210,13 @@ pub const INTEGRATE_PREDICT_SOLID: PassSpec = pass(
 pub const INTEGRATE_ADVANCE_LIQUID: PassSpec = pass(
     "integrate_advance_liquid",
     "integrate",
-    &[Params, Step, LiquidPos, LiquidVel, LiquidVelAdv, LiquidAcc0, EmitState, Objects],
+    &[Params, Step, LiquidPos, LiquidVel, LiquidVelAdv, LiquidAcc0, EmitState, Objects, BedTable],
     Dispatch::Liquid,
 );
 pub const INTEGRATE_ADVANCE_SOLID: PassSpec = pass(
     "integrate_advance_solid",
     "integrate",
-    &[Params, Step, SolidPos, SolidVel, SolidDisp, SolidDens, SolidDrho, SolidFlags, Objects],
+    &[Params, Step, SolidPos, SolidVel, SolidDisp, SolidDens, SolidDrho, SolidFlags, Objects, BedTable],
     Dispatch::Solid,
 );
 pub const INTEGRATE_BOUNDARY: PassSpec = pass(
