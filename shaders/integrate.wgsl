@@ -70,8 +70,8 @@ fn integrate_predict_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
 // Contact with a moulded bed's surface (twin: sim::bed::bed_contact, same f32 operations): when x lies
 // in one of the bed's lattice columns, below its top and above the bed's lower face, the nearest way
 // out — up onto the column's top, or sideways through a face whose neighbour column is empty or lower
-// than x. `off` is the bed's header in bed_table. Returns hit (w = 1) with the new position in .xyz of
-// `x`, and the normal in `n`.
+// than x. `off` is the bed's header in bed_table. Returns the new position, the outward normal and
+// whether x was inside.
 const BED_HEADER: u32 = 11u;
 const BED_EMPTY: f32 = -3.0e38;
 

@@ -2,8 +2,8 @@
 //! contact projection of boxes and spheres could use (its particles fill only the part of its box under
 //! the tissue), so its boundary particles held the tissue and the blood by their pressure alone: stretched
 //! tissue (p < 0) was not pushed at all, and blood squeezed under an indenter seeped between the bed's
-//! particles (10 liquid particles under the bed's top layer of the Δx = 7 mm liver, indenter pressed to
-//! the bed). This module gives the bed a surface — a heightfield over its lattice columns, each column's
+//! particles (10 liquid particles below the centres of the bed's top particles on the Δx = 7 mm liver,
+//! indenter pressed to the bed). This module gives the bed a surface — a heightfield over its lattice columns, each column's
 //! top the centre of its highest particle — that `object_contact` projects onto like a box face. The
 //! pressure contact still holds the tissue about a smoothing length above those centres; the
 //! projection only catches what passes it.
@@ -49,7 +49,7 @@ impl BedTable {
             let sign = if g[up] > 0.0 { -1.0f32 } else { 1.0 };
             let lateral: Vec<usize> = (0..3).filter(|&a| a != up).collect();
             let (la, lb) = (lateral[0], if dims == 3 { lateral[1] } else { 2 });
-            let sp = o.spacing as f32;
+            let (sp, inv_sp) = (o.spacing as f32, 1.0 / o.spacing as f32);
             let pts: Vec<Vec3> = o.bed.iter().map(|p| params.to_sim(*p)).collect();
             let low = |a: usize| pts.iter().map(|p| p[a]).fold(f32::INFINITY, f32::min) - 0.5 * sp;
             let count = |a: usize, lo: f32| {
@@ -63,7 +63,7 @@ impl BedTable {
             t.offsets.push(start as u32 + 1);
             t.data.extend_from_slice(&[
                 sp,
-                1.0 / sp,
+                inv_sp,
                 lo_a,
                 lo_b,
                 bottom,
@@ -77,9 +77,13 @@ impl BedTable {
             let tops = t.data.len();
             t.data.resize(tops + (na * nb) as usize, EMPTY);
             for p in &pts {
-                let ka = (((p[la] - lo_a) / sp).floor() as i64).clamp(0, na as i64 - 1) as usize;
-                let kb =
-                    if dims == 3 { (((p[lb] - lo_b) / sp).floor() as i64).clamp(0, nb as i64 - 1) as usize } else { 0 };
+                // the column `bed_contact` finds for the point
+                let ka = (((p[la] - lo_a) * inv_sp).floor() as i64).clamp(0, na as i64 - 1) as usize;
+                let kb = if dims == 3 {
+                    (((p[lb] - lo_b) * inv_sp).floor() as i64).clamp(0, nb as i64 - 1) as usize
+                } else {
+                    0
+                };
                 let h = &mut t.data[tops + kb * na as usize + ka];
                 *h = h.max(sign * p[up]);
             }
