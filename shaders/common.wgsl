@@ -97,7 +97,12 @@ struct SimParams {
     tether_damping: f32,
     // membrane (capsule) particles' C10, C01 over the tissue's (1: as the tissue)
     membrane_stiffness: f32,
+    // liquid artificial pressure ε, n and W_C(Δx_l; h_l) (numerics.liquid_artificial_pressure); ε = 0: off
+    ap_eps: f32,
+    ap_exp: i32,
+    wc_dx_l: f32,
     _pad0: f32,
+    _pad1: f32,
 }
 
 // Mirrors `StepState`: the GPU-resident Δt (SPEC §5.3) and the step status bitmask (STYLE §5.4).

@@ -139,6 +139,16 @@ fn wicking_pair(h_x: f32, ns_j: f32, nl_j: f32, r: f32) -> f32 {
     return w * (params.wicking / (h_x * h_x)) * cos(PI * r / (4.0 * h_x));
 }
 
+// Monaghan's artificial pressure of a liquid pair under tension (forces.rs `liquid_artificial_pressure`):
+// (R_i + R_j) f^n with R = ε max(0, −p/ρ²), f = W_C(r; h_l)/W_C(Δx_l; h_l); pi, pj are p/ρ².
+fn liquid_artificial_pressure(kl: KernelConsts, pi: f32, pj: f32, r: f32) -> f32 {
+    let big_r = params.ap_eps * (max(-pi, 0.0) + max(-pj, 0.0));
+    if (big_r <= 0.0) {
+        return 0.0;
+    }
+    return big_r * powi(w_cubic(kl, r) / params.wc_dx_l, params.ap_exp);
+}
+
 // Pair force [N] of the surface tension (3.3) (forces.rs `cohesion_pair`).
 fn cohesion_pair(s: f32, radius: f32, r: f32) -> f32 {
     if (r <= 0.0 || r >= radius) {
@@ -208,9 +218,13 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let vj = liquid_vel[j].xyz;
                 let grad = xij * grad_spiky_factor(kl, r);
                 let pj = dj.w / (dj.x * dj.x);
+                var p_pair = pi + pj;
+                if (params.ap_eps > 0.0) {
+                    p_pair += liquid_artificial_pressure(kl, pi, pj, r);
+                }
                 // −n∇p with the pair's mean fraction: an antisymmetric pair force, so the phase's pressure
                 // forces sum to zero (D-16 with n_i alone propels a body with an asymmetric surface)
-                a += grad * (-0.5 * (n_l + dj.y) * mj * (pi + pj) * params.kappa_s);
+                a += grad * (-0.5 * (n_l + dj.y) * mj * p_pair * params.kappa_s);
                 a += (vj - vi) * (params.kappa_v * params.eta / rho * (mj / dj.x) * lap_viscosity(kl, r));
                 if (params.cohesion_ll > 0.0 && r > 0.0) {
                     // surface tension (3.3): pair force toward j

@@ -439,9 +439,10 @@ fn whole_step_500_matches_cpu() {
 
 /// The surface-tension terms (SPEC §3.12) on both back-ends: a drop on a plate under a fabric sheet
 /// (half held, half free), with liquid–void attraction (3.4) and its reaction on the free fabric,
-/// cohesion and adhesion (3.3) and the wicking pressure (3.5). Same tolerances as the force passes:
-/// accelerations within 1e-4 of max |a|; the surface-tension terms alone are checked to be large
-/// (their removal changes the accelerations by far more than the tolerance).
+/// cohesion and adhesion (3.3), the wicking pressure (3.5) under tension and the liquid's artificial
+/// pressure. Same tolerances as the force passes: accelerations within 1e-4 of max |a|; the
+/// surface-tension terms and the artificial pressure are each checked to matter (their removal changes
+/// the accelerations by far more than the tolerance).
 #[test]
 fn surface_tension_forces_match_cpu() {
     gpu_test("surface_tension_forces_match_cpu", |ctx| {
@@ -457,11 +458,9 @@ fn surface_tension_forces_match_cpu() {
         let d_al = max_vec_diff(&v3(&al), &l.a);
         let d_as = max_vec_diff(&v3(&as_), &s.a);
         // The same state without the surface-tension terms: how much they contribute.
-        let (a_l0, a_s0) = {
+        let without = |f: &dyn Fn(&mut perfuse::sim::params::Params)| {
             let mut p = cpu.params.clone();
-            p.wicking = 0.0;
-            p.cohesion_ll = 0.0;
-            p.cohesion_lb = 0.0;
+            f(&mut p);
             let nb = nbrs(&cpu);
             let ctx = forces::ForceCtx {
                 p: &p,
@@ -475,15 +474,26 @@ fn surface_tension_forces_match_cpu() {
                 forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb),
             )
         };
+        let (a_l0, a_s0) = without(&|p| {
+            p.wicking = 0.0;
+            p.cohesion_ll = 0.0;
+            p.cohesion_lb = 0.0;
+        });
         let st_l = max_vec_diff(&a_l0, &l.a);
         let st_s = max_vec_diff(&a_s0, &s.a);
+        // The same state without the artificial pressure.
+        let ap_l = max_vec_diff(&without(&|p| p.ap_eps = 0.0).0, &l.a);
+        let tension = l.p.iter().filter(|&&p| p < 0.0).count();
         eprintln!(
-            "surface tension: liquid a {d_al:.3e} (max {:.3e}, surface-tension part {st_l:.3e}), solid a {d_as:.3e} \
-             (max {:.3e}, part {st_s:.3e})",
+            "surface tension: liquid a {d_al:.3e} (max {:.3e}, surface-tension part {st_l:.3e}, artificial-pressure \
+             part {ap_l:.3e}, {tension} of {} liquid particles under tension), solid a {d_as:.3e} (max {:.3e}, part \
+             {st_s:.3e})",
             max_len(&l.a),
+            l.x.len(),
             max_len(&s.a)
         );
         assert!(st_l > 0.05 * max_len(&l.a), "the scene must exercise (3.3)/(3.4) on the liquid");
+        assert!(ap_l > 1e-2 * max_len(&l.a), "the scene must exercise the liquid's artificial pressure");
         assert!(st_s > 1e-3 * max_len(&s.a), "the free fabric must feel the reaction of (3.4)");
         assert!(d_al <= 1e-4 * max_len(&l.a));
         assert!(d_as <= 1e-4 * max_len(&s.a));

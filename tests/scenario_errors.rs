@@ -162,6 +162,23 @@ fn negative_mooney_rivlin() {
 }
 
 #[test]
+fn artificial_pressure_needs_tension_and_a_sane_exponent() {
+    let ap = |body: &str| edit("dt_max: 1e-3", &format!("dt_max: 1e-3, {body}"));
+    expect(
+        &ap("liquid_artificial_pressure: Some(ArtificialStress(epsilon: 0.2))"),
+        &["numerics.liquid_artificial_pressure", "liquid_tension: true"],
+    );
+    expect(
+        &ap("liquid_tension: true, liquid_artificial_pressure: Some(ArtificialStress(epsilon: 0.2, exponent: 0))"),
+        &["numerics.liquid_artificial_pressure.exponent", "1..=12"],
+    );
+    expect(
+        &ap("liquid_tension: true, liquid_artificial_pressure: Some(ArtificialStress(epsilon: -1.0))"),
+        &["numerics.liquid_artificial_pressure.epsilon", "0.2"],
+    );
+}
+
+#[test]
 fn dt_bound_never_met() {
     expect(&edit("dt_min: 1e-9, dt_max: 1e-3", "dt_min: 1e-2, dt_max: 1.0"), &["numerics.dt_min", "can never be met"]);
 }

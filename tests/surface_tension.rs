@@ -307,3 +307,76 @@ fn cohesion_and_adhesion_on_a_pair_match_eq_3_3() {
     assert!(a_ref.length() > 1.0);
     assert!((a - a_ref).length() <= 1e-4 * a_ref.length(), "solver {a:?} vs (3.3) {a_ref:?}");
 }
+
+/// The liquid's artificial pressure (`numerics.liquid_artificial_pressure`; README: deviations from
+/// SPEC) on a lone pair under tension (2-D, both pˡ = k(nˡ − 1) < 0, no viscosity, no gravity), at
+/// r = ½Δx_l and r = 1.5Δx_l. Checked against the term evaluated here in f64: the acceleration it adds
+/// to particle 0 is −½(n₀ + n₁) m (R₀ + R₁) f^n κ_S ∇W_S with R = ε|p|/ρ² and f = W_C(r; h)/W_C(Δx; h),
+/// W_C written out from (2.29) (the spiky gradient is the solver's, tested in `kernels`); read back as
+/// v/Δt after one step of Δt = 10⁻⁸ s (within 10⁻³ of it). At ½Δx_l the pair that tension pulls
+/// together is pushed apart with the term, at 1.5Δx_l it still attracts (the term is short-ranged).
+#[test]
+fn artificial_pressure_repels_a_close_pair_under_tension() {
+    let dx = 1.0e-4;
+    let run = |sep: f64, eps: Option<f64>| {
+        let ap = eps.map(|e| format!("liquid_artificial_pressure: Some(ArtificialStress(epsilon: {e}, exponent: 4)),"));
+        let text = format!(
+            r#"Scenario(
+            name: "ap_pair", dimensions: 2,
+            domain: Domain(min: (-0.002, -0.002, 0.0), max: (0.002, 0.002, 0.0)),
+            liquid: Some(Liquid(density: 1000.0, viscosity: 0.0, sound_speed: Some(2.0))),
+            numerics: Numerics(dx_liquid: Some({dx}), h_over_dx: 1.3, liquid_tension: true, fixed_dt: Some(1e-8),
+                {}),
+            particles: [
+                Sphere(phase: Liquid, centre: (0.0, 0.0, 0.0), radius: 1e-7, fraction: 1.0),
+                Sphere(phase: Liquid, centre: ({sep}, 0.0, 0.0), radius: 1e-7, fraction: 1.0),
+            ],
+            duration: 0.01,
+        )"#,
+            ap.unwrap_or_default()
+        );
+        let sc = Scenario::from_str_named(&text, "ap_pair.ron").expect("valid");
+        let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+        sim.step().expect("step");
+        let s = sim.read_state().expect("state");
+        assert_eq!(s.liquid.len(), 2);
+        (s.liquid.vel[0].x as f64 / s.t, s, sim.params().clone())
+    };
+    for sep in [0.5 * dx, 1.5 * dx] {
+        let (a_off, _, _) = run(sep, None);
+        let (a_on, s, p) = run(sep, Some(0.2));
+        let r = (s.liquid.pos[1] - s.liquid.pos[0]).length() as f64;
+        let h = p.k_liquid.h as f64;
+        let w_c = |r: f64| {
+            let q = r / h;
+            let a = 10.0 / (7.0 * std::f64::consts::PI * h * h);
+            if q < 1.0 {
+                a * (1.0 - 1.5 * q * q + 0.75 * q.powi(3))
+            } else if q < 2.0 {
+                a * 0.25 * (2.0 - q).powi(3)
+            } else {
+                0.0
+            }
+        };
+        let (m, rho, pr, n_l) =
+            (s.liquid.mass[0] as f64, s.liquid.rho[0] as f64, s.liquid.p[0] as f64, s.liquid.n_l[0] as f64);
+        assert!(pr < 0.0, "the pair is under tension: p = {pr}");
+        let big_r = 0.2 * 2.0 * (-pr) / (rho * rho);
+        let f = w_c(r) / w_c(dx);
+        // ∇W_S at x_0 − x_1 = (−r, 0): grad_spiky_factor × (−r)
+        let grad_x = p.k_liquid.grad_spiky_factor(r as f32) as f64 * -r;
+        let term = -n_l * m * big_r * f.powi(4) * p.kappa_s as f64 * grad_x;
+        eprintln!(
+            "r = {:.2}Δx: p = {pr:.1} Pa, a_x without {a_off:.4e}, with {a_on:.4e} m/s², term {:.4e} (reference {term:.4e})",
+            r / dx,
+            a_on - a_off
+        );
+        assert!(((a_on - a_off) - term).abs() <= 1e-3 * term.abs(), "term {} vs {term}", a_on - a_off);
+        assert!(a_off > 0.0, "tension pulls particle 0 toward particle 1 (+x)");
+        if sep < dx {
+            assert!(a_on < 0.0, "with the term the close pair repels");
+        } else {
+            assert!(a_on > 0.0, "beyond Δx the term is small: the pair still attracts");
+        }
+    }
+}

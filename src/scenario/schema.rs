@@ -257,6 +257,13 @@ pub struct Numerics {
     /// zero-energy modes of a relaxing specimen). Absent: off, the thesis's operator.
     #[serde(default)]
     pub hourglass: Option<f64>,
+    /// Monaghan's artificial pressure for a liquid under tension (not in the thesis; README: deviations
+    /// from SPEC): liquid pairs with pˡ < 0 get the short-range repulsion (R_i + R_j)f_ij^n of (2.59)–(2.60)
+    /// with R = ε|pˡ|/ρ² and f_ij = W_C(r; h_l)/W_C(Δx_l; h_l), which stops the pairing (tensile)
+    /// instability of SPH under tension from stacking particles. Absent: off. Requires
+    /// `liquid_tension` (a validation error otherwise).
+    #[serde(default)]
+    pub liquid_artificial_pressure: Option<ArtificialStress>,
 }
 
 fn d_h_over_dx() -> f64 {

@@ -249,6 +249,29 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             "the thesis uses 4",
         ));
     }
+    if let Some(a) = &n.liquid_artificial_pressure {
+        if !n.liquid_tension {
+            return Err(Check::fail(
+                "numerics.liquid_artificial_pressure",
+                "is set but the liquid sustains no tension (liquid_tension: false), so it would never act",
+                "add liquid_tension: true, or remove liquid_artificial_pressure",
+            ));
+        }
+        Check::range(
+            "numerics.liquid_artificial_pressure.epsilon",
+            a.epsilon,
+            0.0,
+            1.0,
+            "ε in [0, 1]; Monaghan (2000) uses 0.2 for liquids",
+        )?;
+        if a.exponent == 0 || a.exponent > 12 {
+            return Err(Check::fail(
+                "numerics.liquid_artificial_pressure.exponent",
+                format!("{} is outside 1..=12", a.exponent),
+                "Monaghan (2000) uses 4",
+            ));
+        }
+    }
     Check::range("numerics.xsph.solid", n.xsph.solid, 0.0, 1.0, "ε̃ lies in [0, 1], default 0.5")?;
     Check::range("numerics.xsph.liquid", n.xsph.liquid, 0.0, 1.0, "ε̃ lies in [0, 1], default 0")?;
     let c = &n.cfl;

@@ -57,6 +57,11 @@ pub struct Params {
     pub av_liquid: bool,
     pub as_eps: f32,
     pub as_exp: i32,
+    /// Liquid artificial pressure ε (0: off) and exponent n (`numerics.liquid_artificial_pressure`).
+    pub ap_eps: f32,
+    pub ap_exp: i32,
+    /// W_C(Δx_l; h_l), denominator of the liquid's f_ij.
+    pub wc_dx_l: f32,
     pub xsph_s: f32,
     pub xsph_l: f32,
     pub kappa_v: f32,
@@ -232,6 +237,12 @@ impl Params {
             av_liquid: n.artificial_viscosity.liquid,
             as_eps: n.artificial_stress.epsilon as f32,
             as_exp: n.artificial_stress.exponent as i32,
+            ap_eps: match &n.liquid_artificial_pressure {
+                Some(a) if n.liquid_tension && g.dx_liquid > 0.0 => a.epsilon as f32,
+                _ => 0.0,
+            },
+            ap_exp: n.liquid_artificial_pressure.as_ref().map_or(4, |a| a.exponent as i32),
+            wc_dx_l: if g.dx_liquid > 0.0 { Kernel::new(h_l as f32, dim).w_cubic(g.dx_liquid as f32) } else { 1.0 },
             xsph_s: n.xsph.solid as f32,
             xsph_l: n.xsph.liquid as f32,
             kappa_v: kappa_v as f32,

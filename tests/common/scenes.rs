@@ -51,7 +51,8 @@ pub fn wicking_block() -> Scenario {
             wicking: 0.0728, cohesion: Some(Cohesion(liquid: 2e-6, boundary: 1e-6)))),
         solid: Some(Solid(density: 1000.0, c10: 100.0, c01: 0.0, k_s: 1000.0, n_sat: 0.3, k_sat: 0.0,
             friction: 3.5e5)),
-        numerics: Numerics(dx_liquid: Some(5.0e-4), dx_solid: Some(2.5e-4), h_over_dx: 1.3),
+        numerics: Numerics(dx_liquid: Some(5.0e-4), dx_solid: Some(2.5e-4), h_over_dx: 1.3, liquid_tension: true,
+            liquid_artificial_pressure: Some(ArtificialStress(epsilon: 0.2, exponent: 4))),
         particles: [
             Box(phase: Liquid, min: (0.001, 0.001, 0.0015), max: (0.005, 0.005, 0.0030), fraction: 1.0),
             Sheet(centre: (0.003, 0.003, 0.0031), size: (0.005, 0.005), fraction: 0.3),

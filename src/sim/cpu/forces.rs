@@ -240,6 +240,21 @@ pub fn liquid_from_boundary(
     a
 }
 
+/// Monaghan's (2000) artificial pressure of a liquid pair under tension (`numerics.liquid_artificial_
+/// pressure`; README: deviations from SPEC): (R_i + R_j) f_ij^n with R = ε max(0, −p/ρ²), the liquid's
+/// form of the solid's artificial stress (2.59)–(2.60), and f_ij = W_C(r; h_l)/W_C(Δx_l; h_l). Added to
+/// the pair's p_i/ρ_i² + p_j/ρ_j², it repels particles closer than Δx_l where the suction would pull them
+/// into pairs and stacks (SPH's tensile instability). `pi`, `pj` are p/ρ². Twin of
+/// `liquid_artificial_pressure` in forces.wgsl.
+#[inline]
+pub fn liquid_artificial_pressure(p: &Params, pi: f32, pj: f32, r: f32) -> f32 {
+    let big_r = p.ap_eps * ((-pi).max(0.0) + (-pj).max(0.0));
+    if big_r <= 0.0 {
+        return 0.0;
+    }
+    big_r * (p.k_liquid.w_cubic(r) / p.wc_dx_l).powi(p.ap_exp)
+}
+
 /// Pair factor of the liquid–void attraction (3.4), SPEC §3.12: w_j (γ/h_×²) cos(πr/(4h_×)) with the
 /// switch w_j = max(0, 1 − nˢ_j − nˡ_j) of the solid particle j; the force per unit volume on the liquid
 /// particle points toward j (D-22). Zero beyond R_× = 2h_× and for coincident particles.
@@ -285,9 +300,13 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
                 }
                 let grad = xij * kl.grad_spiky_factor(r);
                 let pj = l.p[j] / (l.rho[j] * l.rho[j]);
+                let mut p_pair = pi + pj;
+                if p.ap_eps > 0.0 {
+                    p_pair += liquid_artificial_pressure(p, pi, pj, r);
+                }
                 // −n∇p with the pair's mean fraction: an antisymmetric pair force, so the phase's
                 // pressure forces sum to zero (D-16's n_i alone propels a body with an asymmetric surface)
-                a += grad * (-0.5 * (n_l + l.n_l[j]) * l.m[j] * (pi + pj) * p.kappa_s);
+                a += grad * (-0.5 * (n_l + l.n_l[j]) * l.m[j] * p_pair * p.kappa_s);
                 a += (l.v[j] - vi) * (p.kappa_v * p.eta / rho * (l.m[j] / l.rho[j]) * kl.lap_viscosity(r));
                 if p.av_liquid {
                     let pij = artificial_viscosity(

@@ -107,7 +107,12 @@ pub struct SimParams {
     pub tether_damping: f32,
     /// `Params::membrane_stiffness`: capsule C10, C01 over the tissue's.
     pub membrane_stiffness: f32,
+    /// Liquid artificial pressure (`Params::ap_eps`, `ap_exp`, `wc_dx_l`); ε = 0: off.
+    pub ap_eps: f32,
+    pub ap_exp: i32,
+    pub wc_dx_l: f32,
     pub _pad0: f32,
+    pub _pad1: f32,
 }
 
 /// Set counts of a scene, as the uniform block carries them.
@@ -185,7 +190,11 @@ impl SimParams {
             tether_omega2: p.tether_omega2,
             tether_damping: p.tether_damping,
             membrane_stiffness: p.membrane_stiffness,
+            ap_eps: p.ap_eps,
+            ap_exp: p.ap_exp,
+            wc_dx_l: p.wc_dx_l,
             _pad0: 0.0,
+            _pad1: 0.0,
         }
     }
 }
@@ -404,7 +413,7 @@ pub struct GridSet {
 }
 
 const _: () = assert!(size_of::<KernelConsts>() == 32);
-const _: () = assert!(size_of::<SimParams>() == 432);
+const _: () = assert!(size_of::<SimParams>() == 448);
 const _: () = assert!(size_of::<StepState>() == 48);
 const _: () = assert!(size_of::<ObjectGpu>() == 96);
 const _: () = assert!(size_of::<Mat3Gpu>() == 48);
@@ -441,6 +450,8 @@ pub const LAYOUTS: &[StructLayout] = &[
             ("kappa_s", offset_of!(SimParams, kappa_s)),
             ("wicking", offset_of!(SimParams, wicking)),
             ("cohesion_lb", offset_of!(SimParams, cohesion_lb)),
+            ("ap_eps", offset_of!(SimParams, ap_eps)),
+            ("wc_dx_l", offset_of!(SimParams, wc_dx_l)),
             ("dt_upper", offset_of!(SimParams, dt_upper)),
             ("hourglass", offset_of!(SimParams, hourglass)),
         ],
