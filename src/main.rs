@@ -23,6 +23,10 @@ struct Cli {
     /// Viewer: record the session to this file (replay with `perfuse replay FILE --verify`).
     #[arg(long)]
     record: Option<PathBuf>,
+    /// Viewer: cap the live run at this many simulated seconds per wall second (1: real time,
+    /// 0.01: slow motion); default as fast as the back-end goes. Also in the Run panel.
+    #[arg(long)]
+    pace: Option<f64>,
 }
 
 /// The viewer's window options (the viewer on a scenario, and `perfuse replay`).
@@ -449,7 +453,13 @@ fn viewer(cli: &Cli) -> Result<()> {
         Backend::Cpu => Some(false),
         Backend::Gpu => Some(true),
     };
-    open_viewer(scenario, path, gpu_simulation, &cli.window, cli.record.clone(), None)
+    if let Some(p) = cli.pace {
+        let (lo, hi) = perfuse::app::sim_thread::PACE_RANGE;
+        if !(p.is_finite() && (lo..=hi).contains(&p)) {
+            bail!("--pace {p}: give simulated seconds per wall second between {lo} and {hi} (1 = real time)");
+        }
+    }
+    open_viewer(scenario, path, gpu_simulation, &cli.window, cli.record.clone(), None, cli.pace)
 }
 
 /// Opens the viewer (live on `scenario`, or replaying `replay`) with the window options, then prints
@@ -461,6 +471,7 @@ fn open_viewer(
     window: &WindowArgs,
     record: Option<PathBuf>,
     replay: Option<perfuse::replay::format::Recording>,
+    pace: Option<f64>,
 ) -> Result<()> {
     if window.frames == Some(0) {
         bail!("--frames must be at least 1");
@@ -475,6 +486,7 @@ fn open_viewer(
         paused: window.paused,
         record,
         replay,
+        pace,
     };
     let report = perfuse::app::run(opts)?;
     println!(
@@ -567,7 +579,7 @@ fn real_main() -> Result<()> {
             if !(verify || headless || seek.is_some() || vtk.is_some()) {
                 let scenario = session::recorded_scenario(&rec)?;
                 let gpu = Some(backend == BackendKind::Gpu);
-                return open_viewer(scenario, file.clone(), gpu, &window, None, Some(rec));
+                return open_viewer(scenario, file.clone(), gpu, &window, None, Some(rec), None);
             }
             let out = if let Some(dir) = &vtk {
                 if seek.is_some() {

@@ -70,6 +70,46 @@ fn simulation_thread_publishes_obeys_and_pauses_on_divergence() {
     });
 }
 
+/// The live run's pace (issue 5 §1, "or at a chosen real-time factor"): under `Control::Pace(r)`
+/// the simulated clock advances by no more than r × the wall time (plus one batch: a batch is cut to
+/// what the pace allows in 30 ms, at least one step), and it still advances; the status reports the
+/// pace and `Pace(None)` lifts it. The bound is one-sided, so a slow machine cannot fail it.
+#[test]
+fn a_paced_run_keeps_to_its_real_time_factor() {
+    gpu_test("a_paced_run_keeps_to_its_real_time_factor", |ctx| {
+        let sc = common::scenes::perfused_block();
+        let (tx, rx) = std::sync::mpsc::channel();
+        let shared = Arc::new(Shared::default());
+        let handle = spawn(ctx, false, sc, true, None, rx, shared.clone()).expect("thread");
+        wait_for(&shared, "first publish", |s| s.publishes >= 1);
+        let pace = 2e-4;
+        tx.send(Control::Pace(Some(pace))).expect("send");
+        wait_for(&shared, "pace set", |s| s.pace == Some(pace));
+        tx.send(Control::Pause(false)).expect("send");
+        let first = wait_for(&shared, "running", |s| s.steps >= 1);
+        let (t_a, wall_a) = (first.t, Instant::now());
+        let dt = first.dt.max(first.t / first.steps.max(1) as f64);
+        let later = wait_for(&shared, "three more steps", |s| s.steps >= first.steps + 3);
+        std::thread::sleep(Duration::from_millis(500));
+        let st = lock(&shared.status).clone();
+        let wall = wall_a.elapsed().as_secs_f64();
+        let allowed = pace * wall + (pace * 0.03).max(dt) * 2.0;
+        eprintln!(
+            "paced at {pace}: {:.3e} s simulated in {wall:.2} s of wall time (allowed {allowed:.3e}; Δt {dt:.2e}, \
+             {} steps, real-time factor shown {:.2e})",
+            st.t - t_a,
+            st.steps - first.steps,
+            st.real_time_factor
+        );
+        assert!(later.t > t_a, "the paced run advances");
+        assert!(st.t - t_a <= allowed, "ran ahead of its pace: {} s in {wall} s", st.t - t_a);
+        tx.send(Control::Pace(None)).expect("send");
+        wait_for(&shared, "pace lifted", |s| s.pace.is_none());
+        tx.send(Control::Quit).expect("send");
+        handle.join().expect("thread ends");
+    });
+}
+
 /// The viewer's replay mode (issue 8 §2) and live recording (§1) without a window: record a live
 /// session with the record control (it starts with a keyframe), replay it in the thread to its end
 /// (pausing there), seek back, take over with a branch recording, drive the tool live, and check

@@ -28,7 +28,7 @@ fn viewer_draws_frames_under_xvfb_and_saves_a_screenshot() {
         .arg(env!("CARGO_BIN_EXE_perfuse"))
         .arg("--scenario")
         .arg(&scenario)
-        .args(["--frames", "6", "--size", "960x640", "--screenshot"])
+        .args(["--frames", "6", "--size", "960x640", "--pace", "1", "--screenshot"])
         .arg(&shot)
         .output()
         .expect("xvfb-run starts");
@@ -43,6 +43,21 @@ fn viewer_draws_frames_under_xvfb_and_saves_a_screenshot() {
     colours.sort_unstable();
     colours.dedup();
     assert!(colours.len() > 50, "screenshot looks blank ({} colours)", colours.len());
+}
+
+#[test]
+fn viewer_rejects_an_absurd_pace() {
+    for bad in ["0", "-1", "NaN", "1e9"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_perfuse"))
+            .arg(format!("--pace={bad}"))
+            .args(["--frames", "1"])
+            .output()
+            .expect("binary runs");
+        assert!(!out.status.success(), "--pace {bad} accepted");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains("--pace") && stderr.contains("real time"), "{stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
 }
 
 #[test]

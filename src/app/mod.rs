@@ -42,6 +42,8 @@ pub struct ViewerOptions {
     /// Replay this recording (with its timeline) instead of running `scenario` live; `scenario`
     /// should be the recording's own.
     pub replay: Option<crate::replay::format::Recording>,
+    /// Start the live run paced at this many simulated seconds per wall second (`--pace`).
+    pub pace: Option<f64>,
 }
 
 /// Why the viewer could not run.
@@ -185,6 +187,9 @@ impl App {
         };
         let sim_thread = sim_thread::spawn_with(ctx.clone(), start, rx, shared.clone())
             .map_err(|e| AppError::Gpu(format!("could not start the simulation thread: {e}")))?;
+        if self.opts.pace.is_some() {
+            let _ = tx.send(Control::Pace(self.opts.pace));
+        }
         let mut ui_state = ui::UiState {
             scenarios: ui::shipped_scenarios(),
             current: self.opts.scenario_path.clone(),
@@ -554,6 +559,7 @@ impl Gfx {
             ui::UiAction::Record(false) => self.send(Control::Record(None)),
             ui::UiAction::Seek(n) => self.send(Control::SeekStep(n)),
             ui::UiAction::ReplaySpeed(s) => self.send(Control::ReplaySpeed(s)),
+            ui::UiAction::Pace(p) => self.send(Control::Pace(p)),
             ui::UiAction::TakeOver { branch } => {
                 let path = branch.then(|| {
                     PathBuf::from("recordings").join(format!("{}-branch-{}.pfrec", self.scenario.name, unix_stamp()))

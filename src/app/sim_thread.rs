@@ -42,6 +42,9 @@ pub enum Control {
     SeekStep(u64),
     /// Replay: playback speed as a fraction of full speed (0.05 … 1).
     ReplaySpeed(f64),
+    /// Live: cap the run at this many simulated seconds per wall second (1: real time, 0.1: ten
+    /// times slower than life); `None`: as fast as the back-end goes. Not applied while relaxing.
+    Pace(Option<f64>),
     /// Replay: continue live from the current state; with a file, record a branch there.
     TakeOver(Option<std::path::PathBuf>),
     Quit,
@@ -93,6 +96,8 @@ pub struct SimStatus {
     pub steps_per_s: f64,
     /// Simulated seconds per wall second.
     pub real_time_factor: f64,
+    /// The live run's cap on the real-time factor (`Control::Pace`); `None`: uncapped.
+    pub pace: Option<f64>,
     pub n_liquid: u32,
     pub n_solid: u32,
     pub broken_bonds: u64,
@@ -130,6 +135,29 @@ pub fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 
 /// Wall time a batch of steps aims at: short enough for commands to act within a few frames.
 const BATCH_TARGET: Duration = Duration::from_millis(30);
+
+/// Smallest and largest pace the viewer accepts (simulated seconds per wall second).
+pub const PACE_RANGE: (f64, f64) = (1e-4, 10.0);
+
+/// Wall time a batch that simulated `sim_dt` seconds takes at `pace` simulated seconds per wall
+/// second: the next batch starts that long after this one started (the thread keeps answering
+/// controls meanwhile). At most an hour; zero for a batch that did not advance the clock.
+pub fn pace_wall(sim_dt: f64, pace: f64) -> Duration {
+    if !(sim_dt > 0.0 && pace > 0.0) {
+        return Duration::ZERO;
+    }
+    Duration::try_from_secs_f64((sim_dt / pace).min(3600.0)).unwrap_or(Duration::ZERO)
+}
+
+/// Steps per batch under a pace: no more than the pace lets the clock advance in one
+/// [`BATCH_TARGET`] at step size `dt` (at least one), nor more than `want`.
+pub fn paced_batch(want: u32, dt: f64, pace: f64) -> u32 {
+    if !(dt > 0.0 && pace > 0.0) {
+        return want;
+    }
+    let fit = (pace * BATCH_TARGET.as_secs_f64() / dt).floor();
+    if fit >= want as f64 { want } else { (fit as u32).max(1) }
+}
 
 /// Steps per second and simulated seconds per wall second over the last ~second.
 #[derive(Default)]
@@ -194,6 +222,10 @@ struct Runner {
     relax_end: Option<f64>,
     batch: u32,
     rate: RateMeter,
+    /// `Control::Pace`: the live run's cap on simulated seconds per wall second.
+    pace: Option<f64>,
+    /// Under a pace, when the next batch may start.
+    next_batch_at: Option<Instant>,
 }
 
 impl Runner {
@@ -208,8 +240,14 @@ impl Runner {
     fn build(&mut self) {
         self.finish_recording();
         self.sim = None;
+        self.next_batch_at = None;
         self.metrics = Default::default();
-        let mut status = SimStatus { scenario: self.scenario.name.clone(), paused: self.paused, ..Default::default() };
+        let mut status = SimStatus {
+            scenario: self.scenario.name.clone(),
+            paused: self.paused,
+            pace: self.pace,
+            ..Default::default()
+        };
         if let Some(rec) = self.replay.take() {
             self.build_replay(rec, &mut status);
         } else {
@@ -475,6 +513,11 @@ impl Runner {
                     r.speed = self.replay_speed;
                 }
             }
+            Control::Pace(p) => {
+                self.pace = p.filter(|r| r.is_finite() && *r > 0.0).map(|r| r.clamp(PACE_RANGE.0, PACE_RANGE.1));
+                self.next_batch_at = None;
+                lock(&self.shared.status).pace = self.pace;
+            }
             Control::TakeOver(branch) => self.take_over(branch),
         }
         true
@@ -509,6 +552,7 @@ impl Runner {
     /// the status.
     fn advance(&mut self, steps: u32) {
         let relax_end = self.relax_end;
+        self.next_batch_at = None;
         let Some(mode) = &mut self.sim else { return };
         let (t0, start) = (Self::sim_of(mode).time(), Instant::now());
         let r = match mode {
@@ -557,6 +601,10 @@ impl Runner {
                     let per_step = wall.as_secs_f64() / taken as f64;
                     let want = (BATCH_TARGET.as_secs_f64() / per_step.max(1e-6)).clamp(1.0, 64.0);
                     self.batch = want as u32;
+                    // A paced live run takes no more steps than the pace lets the clock advance.
+                    if let (Some(pace), Mode::Live(_), None) = (self.pace, &*mode, relax_end) {
+                        self.batch = paced_batch(self.batch, (t1 - t0) / taken as f64, pace);
+                    }
                 }
             }
             Err(e) => {
@@ -578,6 +626,11 @@ impl Runner {
         drop(st);
         match mode {
             Mode::Live(rs) => {
+                // A paced run waits for the clock before its next batch (not while relaxing).
+                self.next_batch_at = match (self.pace, relax_end) {
+                    (Some(pace), None) => Some(start + pace_wall(t1 - t0, pace)),
+                    _ => None,
+                };
                 self.since_keyframe += wall;
                 Self::after_live_batch(
                     rs,
@@ -720,6 +773,26 @@ impl Runner {
                 }
                 continue;
             }
+            // Paced: wait for the clock, answering controls meanwhile.
+            if let Some(at) = self.next_batch_at {
+                let now = Instant::now();
+                if now < at {
+                    match rx.recv_timeout((at - now).min(Duration::from_millis(50))) {
+                        Ok(m) => {
+                            let publish = !matches!(m, Control::Step);
+                            if !self.handle(m) {
+                                return;
+                            }
+                            if publish {
+                                self.publish();
+                            }
+                        }
+                        Err(RecvTimeoutError::Timeout) => {}
+                        Err(RecvTimeoutError::Disconnected) => return,
+                    }
+                    continue;
+                }
+            }
             self.advance(self.batch);
         }
     }
@@ -777,8 +850,40 @@ pub fn spawn_with(
         front: 1,
         paused: start.paused,
         relax_end: None,
+        pace: None,
+        next_batch_at: None,
         batch: 1,
         rate: RateMeter::default(),
     };
     std::thread::Builder::new().name("perfuse-sim".into()).spawn(move || runner.run(rx))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A batch that simulated 1 ms at a pace of 0.01 should take 0.1 s of wall time; a batch that
+    /// did not advance, or a nonsensical pace, waits for nothing; absurd ratios stop at an hour.
+    #[test]
+    fn pace_wall_is_the_batch_time_over_the_pace() {
+        assert_eq!(pace_wall(1e-3, 0.01), Duration::from_millis(100));
+        assert_eq!(pace_wall(0.5, 1.0), Duration::from_millis(500));
+        assert_eq!(pace_wall(0.0, 0.01), Duration::ZERO);
+        assert_eq!(pace_wall(1e-3, 0.0), Duration::ZERO);
+        assert_eq!(pace_wall(f64::NAN, 1.0), Duration::ZERO);
+        assert_eq!(pace_wall(1e9, 1e-4), Duration::from_secs(3600));
+    }
+
+    /// Under a pace a batch holds no more steps than the pace lets the clock advance in one
+    /// BATCH_TARGET (30 ms), at least one, never more than the unpaced size.
+    #[test]
+    fn paced_batch_fits_the_pace() {
+        // 1 s per wall s, Δt = 1 ms: 30 steps in 30 ms; capped by want.
+        assert_eq!(paced_batch(64, 1e-3, 1.0), 30);
+        assert_eq!(paced_batch(10, 1e-3, 1.0), 10);
+        // Slow motion: fewer than one step per batch still takes one.
+        assert_eq!(paced_batch(64, 5e-5, 1e-4), 1);
+        // No pace information: unchanged.
+        assert_eq!(paced_batch(64, 0.0, 1.0), 64);
+    }
 }

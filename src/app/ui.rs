@@ -27,6 +27,8 @@ pub enum UiAction {
     Seek(u64),
     /// Replay: playback speed (fraction of full speed).
     ReplaySpeed(f64),
+    /// Live: cap on simulated seconds per wall second (`None`: as fast as it goes).
+    Pace(Option<f64>),
     /// Replay: continue live from here, recording a branch when true.
     TakeOver {
         branch: bool,
@@ -72,6 +74,38 @@ pub fn shipped_scenarios() -> Vec<PathBuf> {
         .unwrap_or_default();
     v.sort();
     v
+}
+
+/// The paces the run-control panel offers (simulated seconds per wall second; `None`: uncapped).
+const PACES: [Option<f64>; 5] = [None, Some(1.0), Some(0.1), Some(0.01), Some(0.001)];
+
+fn pace_label(p: Option<f64>) -> String {
+    match p {
+        None => "as fast as it goes".into(),
+        Some(1.0) => "real time".into(),
+        Some(r) => format!("{r}× real time"),
+    }
+}
+
+/// The live run's pace: uncapped, real time, or slow motion for demonstrations (a fast GPU runs a
+/// small scene faster than life; an instructor slows a hemorrhage down to watch it).
+fn pace_picker(ui: &mut egui::Ui, current: Option<f64>, actions: &mut Vec<UiAction>) {
+    ui.horizontal(|ui| {
+        ui.label("pace");
+        let mut chosen = current;
+        egui::ComboBox::from_id_salt("pace")
+            .selected_text(pace_label(current))
+            .show_ui(ui, |ui| {
+                for p in PACES {
+                    ui.selectable_value(&mut chosen, p, pace_label(p));
+                }
+            })
+            .response
+            .on_hover_text("cap the simulated seconds per wall second (the real-time factor); not while relaxing");
+        if chosen != current {
+            actions.push(UiAction::Pace(chosen));
+        }
+    });
 }
 
 fn file_name(p: &std::path::Path) -> String {
@@ -135,6 +169,7 @@ pub fn panels(
                 }
             });
             if status.replay.is_none() {
+                pace_picker(ui, status.pace, &mut actions);
                 ui.horizontal(|ui| match &status.recording {
                     Some((file, bytes)) => {
                         if ui.button("Stop recording").on_hover_text("V").clicked() {
@@ -261,7 +296,8 @@ pub fn panels(
                 row(ui, "steps", status.steps.to_string());
                 row(ui, "Δt", format!("{:.3e} s ({})", status.dt, status.dt_limit));
                 row(ui, "steps/s", format!("{:.1}", status.steps_per_s));
-                row(ui, "real-time factor", format!("{:.2e}", status.real_time_factor));
+                let cap = status.pace.map(|p| format!(" (pace {})", pace_label(Some(p)))).unwrap_or_default();
+                row(ui, "real-time factor", format!("{:.2e}{cap}", status.real_time_factor));
                 row(ui, "broken bonds", status.broken_bonds.to_string());
                 row(ui, "render", format!("{:.1} fps, {:.1} ms/frame", frame.fps, frame.frame_ms));
                 row(ui, "window", format!("{}×{}", frame.size.0, frame.size.1));
