@@ -159,8 +159,10 @@ fn cohesion_pair(s: f32, radius: f32, r: f32) -> f32 {
 
 // Acceleration of solid particle i from the hourglass control of bond (i, j) (forces.rs
 // `hourglass_pair`): −c G (m_j/ρ_ref) W_C(|X|)/(|X|² ρ_ref) δ x̂ with δ = (½(F̃_i + F̃_j)X − x)·x̂,
-// x = x_j − x_i = −xij now, X = X_j − X_i in the generated configuration.
-fn hourglass_pair(fit_i: mat3x3<f32>, fit_j: mat3x3<f32>, x_ref_ij: vec3<f32>, xij: vec3<f32>, m_j: f32) -> vec3<f32> {
+// x = x_j − x_i = −xij now, X = X_j − X_i in the generated configuration. `stiffness` scales G for the
+// bond: hourglass_stiffness of its two ends (a capsule bond is held as its stress holds it).
+fn hourglass_pair(fit_i: mat3x3<f32>, fit_j: mat3x3<f32>, x_ref_ij: vec3<f32>, xij: vec3<f32>, m_j: f32,
+                  stiffness: f32) -> vec3<f32> {
     let big = min_image(x_ref_ij);
     let now = -xij;
     let r = len3(now);
@@ -170,9 +172,17 @@ fn hourglass_pair(fit_i: mat3x3<f32>, fit_j: mat3x3<f32>, x_ref_ij: vec3<f32>, x
     }
     let u = now / r;
     let delta = dot3(m3_mul_v(m3_add(fit_i, fit_j), big) * 0.5 - now, u);
-    let g_mod = 2.0 * (params.c10 + params.c01);
+    let g_mod = 2.0 * (params.c10 + params.c01) * stiffness;
     let k = params.hourglass * g_mod * (m_j / params.rho_ref_s) * w_cubic(params.k_solid, l0) / (l0 * l0 * params.rho_ref_s);
     return u * -(k * delta);
+}
+
+// The factor on G of the hourglass control for bond (i, j) (forces.rs `hourglass_stiffness`): the mean of
+// the two ends' C10, C01 factors (membrane_stiffness on a capsule particle, 1 elsewhere).
+fn hourglass_stiffness(flags_i: u32, flags_j: u32) -> f32 {
+    let ki = select(1.0, params.membrane_stiffness, (flags_i & SOLID_MEMBRANE) != 0u);
+    let kj = select(1.0, params.membrane_stiffness, (flags_j & SOLID_MEMBRANE) != 0u);
+    return 0.5 * (ki + kj);
 }
 
 fn liquid_gravity() -> vec3<f32> {
@@ -343,7 +353,8 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
             let j = bond_table[i * cap + b];
             let pj4 = solid_pos[j];
             let xij = min_image(xi - pj4.xyz);
-            a += hourglass_pair(fit_i, m3_load(solid_affine[j]), solid_pos_ref[j].xyz - x0i, xij, pj4.w);
+            let stiff = hourglass_stiffness(solid_flags[i], solid_flags[j]);
+            a += hourglass_pair(fit_i, m3_load(solid_affine[j]), solid_pos_ref[j].xyz - x0i, xij, pj4.w, stiff);
         }
     }
     // isotropic pressure, artificial stress and artificial viscosity over current neighbours

@@ -328,35 +328,49 @@ fn stress_and_force_passes_match_cpu() {
 fn hourglass_control_matches_cpu() {
     gpu_test("hourglass_control_matches_cpu", |ctx| {
         let sc = perfused_block().with_override("numerics.hourglass=2").expect("override");
-        let mut cpu = stepped(solver_for(&sc), 40);
-        let mut gpu = gpu_from(ctx, &cpu);
-        gpu.run_stages(passes::EVALUATE).unwrap();
-        cpu_evaluate(&mut cpu);
-        let n = cpu.st.solid.x.len();
-        assert_eq!(cpu.st.solid.hg_fit.len(), n);
-        let fit: Vec<perfuse::sim::gpu::gpu_types::Mat3Gpu> = gpu.read_slot(Slot::SolidAffine, n).unwrap();
-        let mut d_fit = 0.0f32;
-        for (g, c) in fit.iter().zip(&cpu.st.solid.hg_fit) {
-            for (x, y) in Mat3::from(*g).to_cols_array().iter().zip(c.to_cols_array()) {
-                d_fit = d_fit.max((x - y).abs());
-            }
-        }
-        let as_: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, n).unwrap();
-        let g_a: Vec<Vec3> = as_.iter().map(xyz).collect();
-        let a_on = cpu.st.solid.a.clone();
-        let d_a = max_vec_diff(&g_a, &a_on);
-        // the control's share: the same evaluation of the same state without it
-        cpu.params.hourglass = 0.0;
-        cpu_evaluate(&mut cpu);
-        let share = max_vec_diff(&a_on, &cpu.st.solid.a);
-        eprintln!(
-            "hourglass: F̃ {d_fit:.3e}, solid a {d_a:.3e} (max {:.3e}; the control contributes up to {share:.3e})",
-            max_len(&a_on)
-        );
-        assert!(share > 1e-3 * max_len(&a_on), "the control acts on the sheared block");
-        assert!(d_fit <= 1e-5, "F̃ differs by {d_fit}");
-        assert!(d_a <= 1e-4 * max_len(&a_on));
+        hourglass_matches(&ctx, &sc, "sheared block");
+        // a capsule ten times stiffer than its tissue: its bonds are held by the pair's mean stiffness
+        let sc = perfused_cube_under_gravity(
+            "stiff_capsule_hourglass",
+            "membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483, stiffness: 10.0)),",
+        )
+        .with_override("numerics.hourglass=2")
+        .expect("override");
+        hourglass_matches(&ctx, &sc, "stiff capsule");
     });
+}
+
+/// One evaluation of `sc` after 40 CPU steps on both back-ends: F̃ and the solid accelerations agree,
+/// and the control contributes to the latter.
+fn hourglass_matches(ctx: &GpuContext, sc: &perfuse::scenario::Scenario, what: &str) {
+    let mut cpu = stepped(solver_for(sc), 40);
+    let mut gpu = gpu_from(ctx.clone(), &cpu);
+    gpu.run_stages(passes::EVALUATE).expect("GPU evaluation");
+    cpu_evaluate(&mut cpu);
+    let n = cpu.st.solid.x.len();
+    assert_eq!(cpu.st.solid.hg_fit.len(), n);
+    let fit: Vec<perfuse::sim::gpu::gpu_types::Mat3Gpu> = gpu.read_slot(Slot::SolidAffine, n).expect("read F̃");
+    let mut d_fit = 0.0f32;
+    for (g, c) in fit.iter().zip(&cpu.st.solid.hg_fit) {
+        for (x, y) in Mat3::from(*g).to_cols_array().iter().zip(c.to_cols_array()) {
+            d_fit = d_fit.max((x - y).abs());
+        }
+    }
+    let as_: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, n).expect("read solid a");
+    let g_a: Vec<Vec3> = as_.iter().map(xyz).collect();
+    let a_on = cpu.st.solid.a.clone();
+    let d_a = max_vec_diff(&g_a, &a_on);
+    // the control's share: the same evaluation of the same state without it
+    cpu.params.hourglass = 0.0;
+    cpu_evaluate(&mut cpu);
+    let share = max_vec_diff(&a_on, &cpu.st.solid.a);
+    eprintln!(
+        "hourglass, {what}: F̃ {d_fit:.3e}, solid a {d_a:.3e} (max {:.3e}; the control contributes up to {share:.3e})",
+        max_len(&a_on)
+    );
+    assert!(share > 1e-3 * max_len(&a_on), "the control acts on the {what}");
+    assert!(d_fit <= 1e-5, "F̃ differs by {d_fit}");
+    assert!(d_a <= 1e-4 * max_len(&a_on));
 }
 
 /// One whole step from an identical state: F (solid_def_grad, 2.41–2.43), positions, velocities.

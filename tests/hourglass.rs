@@ -13,6 +13,11 @@ use perfuse::sim::params::Params;
 
 /// A dry 3-D block of 8³ solid particles at Δx = 1 mm (no liquid, gravity or walls), or its 2-D twin.
 fn block(dims: u32, hourglass: Option<f64>) -> CpuSolver {
+    block_with(dims, hourglass, "")
+}
+
+/// `block` with `extra` scenario fields (e.g. a capsule).
+fn block_with(dims: u32, hourglass: Option<f64>, extra: &str) -> CpuSolver {
     let hg = hourglass.map(|c| format!("hourglass: Some({c:?}),")).unwrap_or_default();
     let (zmin, zmax) = if dims == 3 { (-0.004, 0.004) } else { (0.0, 0.0) };
     let text = format!(
@@ -23,6 +28,7 @@ fn block(dims: u32, hourglass: Option<f64>) -> CpuSolver {
         solid: Some(Solid(density: 1000.0, c10: 1e4, c01: 100.0, k_s: 1e4, n_sat: 1.0, k_sat: 0.0)),
         numerics: Numerics(dx_solid: Some(0.001), {hg}),
         particles: [ Box(phase: Solid, min: (-0.004, -0.004, {zmin:?}), max: (0.004, 0.004, {zmax:?}), fraction: 1.0) ],
+        {extra}
         duration: 0.01,
     )"#
     );
@@ -49,6 +55,7 @@ fn hourglass_accelerations(cpu: &CpuSolver) -> Vec<Vec3> {
                         s.x_ref[j] - s.x_ref[i],
                         s.x[i] - s.x[j],
                         s.m[j],
+                        forces::hourglass_stiffness(p, s.flags[i], s.flags[j]),
                     )
                 })
                 .sum()
@@ -174,6 +181,56 @@ fn a_particle_moved_alone_is_pulled_back_and_momentum_is_kept() {
     assert!((a_half.length() / a.length() - 0.5).abs() < 0.02, "linear in the displacement");
     assert!((a_c4.length() / a.length() - 2.0).abs() < 1e-3, "linear in c");
     assert!(net.length() < 1e-5 * total, "momentum: the pair forces cancel");
+}
+
+/// A capsule stiffer than its tissue (`membrane.stiffness` = 10) is held by the control as stiffly as
+/// by its stress: a capsule particle moved alone is pulled back 5.5–10 times harder than with a capsule
+/// as soft as the tissue (its bonds to capsule particles count 10×, to tissue particles 5.5×), an
+/// interior particle with tissue bonds only exactly as hard, and momentum is still kept.
+#[test]
+fn a_stiff_capsule_is_held_by_its_own_stiffness() {
+    let capsule = |k: f64| {
+        format!(
+            "membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483, stiffness: {k:?})),"
+        )
+    };
+    let disp = Vec3::new(0.6, -0.3, 0.2) * 1e-4;
+    let pull = |k: f64, which: &dyn Fn(&CpuSolver) -> usize| {
+        let mut cpu = block_with(3, Some(2.0), &capsule(k));
+        assert_eq!(cpu.params.membrane_stiffness, k as f32);
+        let i = which(&cpu);
+        cpu.st.solid.x[i] += disp;
+        cpu.st.solid.hg_fit = solid::solid_fit(&cpu.params, &cpu.st.solid);
+        let acc = hourglass_accelerations(&cpu);
+        let net: Vec3 = acc.iter().zip(&cpu.st.solid.m).map(|(a, m)| *a * *m).sum();
+        let total: f32 = acc.iter().zip(&cpu.st.solid.m).map(|(a, m)| (*a * *m).length()).sum();
+        (acc[i].length(), net.length() / total)
+    };
+    let membrane = |cpu: &CpuSolver| {
+        let s = &cpu.st.solid;
+        let c = centre(cpu);
+        // the capsule particle nearest the centre of the top face
+        (0..s.x.len())
+            .filter(|&i| s.flags[i] & perfuse::scenario::SolidFlags::MEMBRANE != 0 && s.x[i].z > c.z)
+            .min_by(|&i, &j| {
+                let d = |k: usize| (s.x[k] - c).truncate().length() - s.x[k].z;
+                d(i).total_cmp(&d(j))
+            })
+            .expect("a capsule particle on the top face")
+    };
+    let (soft, _) = pull(1.0, &membrane);
+    let (stiff, net) = pull(10.0, &membrane);
+    let (soft_in, _) = pull(1.0, &interior);
+    let (stiff_in, _) = pull(10.0, &interior);
+    eprintln!(
+        "capsule particle moved alone: pulled back {soft:.3e} (capsule as soft as the tissue) vs {stiff:.3e} m/s² \
+         (10×): ratio {:.2}; interior {:.4}; |Σ m a| / Σ |m a| = {net:.1e}",
+        stiff / soft,
+        stiff_in / soft_in
+    );
+    assert!((5.5..=10.0).contains(&(stiff / soft)), "capsule bonds count their stiffness ({})", stiff / soft);
+    assert!((stiff_in / soft_in - 1.0).abs() < 1e-4, "tissue bonds do not ({})", stiff_in / soft_in);
+    assert!(net < 1e-5, "momentum: the pair forces cancel ({net})");
 }
 
 /// Without `numerics.hourglass` the solver computes no fit and the control adds nothing.

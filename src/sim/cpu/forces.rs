@@ -29,8 +29,18 @@ pub struct ForceCtx<'a> {
 /// force −c G V_i V_j W_C(|X_ij|)/|X_ij|² δ x̂_ij (after Ganzenmüller 2015; G = 2(C10 + C01), V = m/ρ_ref,
 /// x_ij = x_j − x_i now, X_ij in the generated configuration). It is antisymmetric in (i, j), so it
 /// conserves momentum, and zero for any affine motion. `xij` is x_i − x_j as in the stress loop.
+/// `stiffness` scales G for the bond: `hourglass_stiffness` of its two ends, so that a capsule bond
+/// (`membrane.stiffness`) is held as stiffly as the capsule's stress holds it.
 #[inline]
-pub fn hourglass_pair(p: &Params, fit_i: Mat3, fit_j: Mat3, x_ref_ij: Vec3, xij: Vec3, m_j: f32) -> Vec3 {
+pub fn hourglass_pair(
+    p: &Params,
+    fit_i: Mat3,
+    fit_j: Mat3,
+    x_ref_ij: Vec3,
+    xij: Vec3,
+    m_j: f32,
+    stiffness: f32,
+) -> Vec3 {
     let big = super::grid::min_image(x_ref_ij, p.periodic_len());
     let now = -xij;
     let r = now.length();
@@ -40,9 +50,16 @@ pub fn hourglass_pair(p: &Params, fit_i: Mat3, fit_j: Mat3, x_ref_ij: Vec3, xij:
     }
     let u = now / r;
     let delta = ((fit_i + fit_j) * big * 0.5 - now).dot(u);
-    let g_mod = 2.0 * (p.c10 + p.c01);
+    let g_mod = 2.0 * (p.c10 + p.c01) * stiffness;
     let k = p.hourglass * g_mod * (m_j / p.rho_ref_s) * p.k_solid.w_cubic(l0) / (l0 * l0 * p.rho_ref_s);
     u * -(k * delta)
+}
+
+/// The factor on G of the hourglass control for a bond between particles with these `SolidFlags`: the
+/// mean of the two ends' `Params::stiffness_factor` (symmetric, so the pair force stays antisymmetric).
+#[inline]
+pub fn hourglass_stiffness(p: &Params, flags_i: u32, flags_j: u32) -> f32 {
+    0.5 * (p.stiffness_factor(flags_i) + p.stiffness_factor(flags_j))
 }
 
 /// Monaghan's Π_ij (2.54)–(2.58); zero for separating pairs.
@@ -405,7 +422,8 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                 for &j in bonds {
                     let j = j as usize;
                     let xij = super::grid::min_image(xi - s.x[j], period);
-                    a += hourglass_pair(p, s.hg_fit[i], s.hg_fit[j], s.x_ref[j] - s.x_ref[i], xij, s.m[j]);
+                    let stiff = hourglass_stiffness(p, s.flags[i], s.flags[j]);
+                    a += hourglass_pair(p, s.hg_fit[i], s.hg_fit[j], s.x_ref[j] - s.x_ref[i], xij, s.m[j], stiff);
                 }
             }
             // Isotropic pressure, artificial stress and artificial viscosity over current neighbours.
