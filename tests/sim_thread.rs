@@ -70,6 +70,82 @@ fn simulation_thread_publishes_obeys_and_pauses_on_divergence() {
     });
 }
 
+/// Reset after the relaxation goes straight back to the relaxed state at t = 0 (the state kept when
+/// the relaxation ended), without relaxing again: the status shows t = 0 and the step count of the
+/// relaxation's end at once, never a negative time; the object poses are those of t = 0 again, and
+/// the run steps on from there. On both back-ends (the GPU's restore is a keyframe upload).
+#[test]
+fn reset_after_the_relaxation_restores_the_relaxed_state() {
+    gpu_test("reset_after_the_relaxation_restores_the_relaxed_state", |ctx| {
+        for use_gpu in [false, true] {
+            reset_restores(ctx.clone(), use_gpu);
+        }
+    });
+}
+
+fn reset_restores(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
+    let base = common::scenes::perfused_block();
+    // a relaxation of a few steps (Δt ≈ 1.3e-5 s)
+    let sc = Scenario::from_str_with_overrides(
+        &ron::ser::to_string(&base).expect("ron"),
+        "block",
+        &["relaxation=Some(Relaxation(duration: 4e-5, damping: 20.0, gravity_solid_only: true))".into()],
+    )
+    .expect("valid");
+    let (tx, rx) = std::sync::mpsc::channel();
+    let shared = Arc::new(Shared::default());
+    let handle = spawn(ctx, use_gpu, sc, true, None, rx, shared.clone()).expect("thread");
+    wait_for(&shared, "first publish", |s| s.publishes >= 1);
+    // single steps until the relaxation has ended (each waits for the thread to settle)
+    let mut k = 0;
+    let relaxed = loop {
+        k += 1;
+        assert!(k < 50, "the relaxation does not end");
+        tx.send(Control::Step).expect("send");
+        wait_for(&shared, "one step", |s| s.steps == k);
+        std::thread::sleep(Duration::from_millis(100));
+        let st = lock(&shared.status).clone();
+        if k == 1 {
+            assert!(st.relaxing && st.t < 0.0, "the first step relaxes: {st:?}");
+        }
+        if !st.relaxing {
+            break st;
+        }
+    };
+    let steps_relaxed = relaxed.steps;
+    let pose_at_0 = lock(&shared.published).info.objects.iter().map(|o| o.centre).collect::<Vec<_>>();
+    // step on, move the tool, then reset
+    tx.send(Control::Sim(Command::PlaceObject { object: 1, position: [0.0035, 0.003, 0.0055] })).expect("send");
+    tx.send(Control::Pause(false)).expect("send");
+    wait_for(&shared, "steps after t = 0", |s| s.steps >= steps_relaxed + 3);
+    tx.send(Control::Pause(true)).expect("send");
+    std::thread::sleep(Duration::from_millis(100));
+    let moved = lock(&shared.published).info.objects.iter().map(|o| o.centre).collect::<Vec<_>>();
+    assert_ne!(moved, pose_at_0, "the tool was moved");
+    let publishes = lock(&shared.status).publishes;
+    tx.send(Control::Reset).expect("send");
+    let back = wait_for(&shared, "the reset", |s| s.steps == steps_relaxed);
+    assert!(back.t.abs() < 1e-12 && !back.relaxing && back.paused, "{back:?}");
+    let start = Instant::now();
+    while lock(&shared.status).publishes <= publishes {
+        assert!(start.elapsed() < Duration::from_secs(30), "the reset state was not published");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let pose = lock(&shared.published).info.objects.iter().map(|o| o.centre).collect::<Vec<_>>();
+    assert_eq!(pose, pose_at_0, "the tools are back where they were at t = 0");
+    // it does not relax again, and runs on from t = 0
+    tx.send(Control::Step).expect("send");
+    let on = wait_for(&shared, "a step after the reset", |s| s.steps == steps_relaxed + 1);
+    assert!(on.t > 0.0 && !on.relaxing, "{on:?}");
+    eprintln!(
+        "reset ({}): back to t = 0 at step {steps_relaxed} without the relaxation's {steps_relaxed} steps; \
+         one step on: t = {:.3e} s",
+        on.backend, on.t
+    );
+    tx.send(Control::Quit).expect("send");
+    handle.join().expect("thread ends");
+}
+
 /// The live run's pace (issue 5 §1, "or at a chosen real-time factor"): under `Control::Pace(r)`
 /// the simulated clock advances by no more than r × the wall time (plus one batch: a batch is cut to
 /// what the pace allows in 30 ms, at least one step), and it still advances; the status reports the

@@ -220,6 +220,10 @@ struct Runner {
     front: usize,
     paused: bool,
     relax_end: Option<f64>,
+    /// The live run's state at t = 0, taken when its relaxation ended, with the patient then: Reset
+    /// restores it instead of relaxing the organ again (a trainee repeating a cut does not wait for the
+    /// relaxation each time). Cleared when another scenario is loaded.
+    relaxed: Option<Box<(crate::sim::snapshot::Snapshot, Option<crate::sim::physiology::Patient>)>>,
     batch: u32,
     rate: RateMeter,
     /// `Control::Pace`: the live run's cap on simulated seconds per wall second.
@@ -483,12 +487,13 @@ impl Runner {
             Control::Reset => {
                 if matches!(self.sim, Some(Mode::Replay(_))) {
                     self.seek(Target::Step(0));
-                } else {
+                } else if !self.restore_relaxed() {
                     self.build();
                 }
             }
             Control::Load(s) => {
                 self.scenario = *s;
+                self.relaxed = None;
                 self.build();
             }
             Control::Sim(cmd) => match &mut self.sim {
@@ -632,13 +637,20 @@ impl Runner {
                     _ => None,
                 };
                 self.since_keyframe += wall;
-                Self::after_live_batch(
+                let relaxed = Self::after_live_batch(
                     rs,
                     &self.shared,
                     &mut self.relax_end,
                     &mut self.since_keyframe,
                     self.patient.as_ref(),
                 );
+                // Keep the relaxed state for Reset (one readback on the GPU, once per scenario).
+                if relaxed && self.relaxed.is_none() {
+                    match rs.sim.snapshot() {
+                        Ok(snap) => self.relaxed = Some(Box::new((snap, self.patient.clone()))),
+                        Err(e) => log::warn!("the relaxed state could not be kept for Reset: {e}"),
+                    }
+                }
                 let mut st = lock(&self.shared.status);
                 if let (Some(r), Some(rec)) = (&rs.recorder, &mut st.recording) {
                     rec.1 = r.bytes_written();
@@ -675,13 +687,16 @@ impl Runner {
 
     /// End of the relaxation (undamped from t = 0, a keyframe) and the periodic keyframes of a
     /// recording.
+    /// Ends the relaxation when its time has come (returns whether it did) and writes the recording's
+    /// keyframes.
     fn after_live_batch(
         rs: &mut RecordedSimulation,
         shared: &Shared,
         relax_end: &mut Option<f64>,
         since_keyframe: &mut Duration,
         patient: Option<&crate::sim::physiology::Patient>,
-    ) {
+    ) -> bool {
+        let mut relaxed = false;
         let mut keyframe = *since_keyframe >= KEYFRAME_EVERY;
         if let Some(t_end) = *relax_end
             && rs.sim.time() >= t_end
@@ -694,6 +709,7 @@ impl Runner {
             }
             *relax_end = None;
             keyframe = true;
+            relaxed = true;
         }
         lock(&shared.status).relaxing = relax_end.is_some();
         if keyframe && rs.recorder.is_some() {
@@ -702,6 +718,49 @@ impl Runner {
                 lock(&shared.status).error = Some(format!("recording: {e}"));
             }
         }
+        relaxed
+    }
+
+    /// Reset of a live run whose relaxation has been kept: the simulation goes back to that state (the
+    /// recording, if any, ends as on every reset; one started later begins with a keyframe of it).
+    /// Returns false (and changes nothing) when there is none to restore, or restoring failed.
+    fn restore_relaxed(&mut self) -> bool {
+        let Some(kept) = self.relaxed.as_ref() else { return false };
+        if !matches!(self.sim, Some(Mode::Live(_))) {
+            return false;
+        }
+        let (snap, patient) = (kept.0.clone(), kept.1.clone());
+        self.finish_recording();
+        let Some(Mode::Live(rs)) = &mut self.sim else { return false };
+        if let Err(e) = rs.sim.restore(snap) {
+            log::warn!("reset: the relaxed state could not be restored ({e}); rebuilding the scenario");
+            self.relaxed = None;
+            return false;
+        }
+        self.relax_end = None;
+        self.next_batch_at = None;
+        self.since_keyframe = Duration::ZERO;
+        self.metrics = Default::default();
+        self.patient = patient;
+        let sim = &rs.sim;
+        let (n_liquid, n_solid) = sim.particle_counts();
+        let status = SimStatus {
+            scenario: self.scenario.name.clone(),
+            backend: sim.backend_name(),
+            t: sim.time(),
+            steps: sim.stats().steps,
+            broken_bonds: sim.stats().broken_bonds,
+            n_liquid,
+            n_solid,
+            paused: self.paused,
+            pace: self.pace,
+            publishes: lock(&self.shared.status).publishes,
+            ..Default::default()
+        };
+        *lock(&self.shared.status) = status;
+        log::info!("reset to the relaxed state at t = {:.3} s (no new relaxation)", sim.time());
+        self.publish();
+        true
     }
 
     /// The patient, from a readback every half second of wall time (not per step). In a replay it
@@ -850,6 +909,7 @@ pub fn spawn_with(
         front: 1,
         paused: start.paused,
         relax_end: None,
+        relaxed: None,
         pace: None,
         next_batch_at: None,
         batch: 1,

@@ -164,7 +164,7 @@ pub fn panels(
                     actions.push(UiAction::Step);
                 }
                 let reset = if status.replay.is_some() { "To start" } else { "Reset" };
-                if ui.button(reset).on_hover_text("R").clicked() {
+                if ui.button(reset).on_hover_text("R: back to t = 0 (after the first relaxation: at once)").clicked() {
                     actions.push(UiAction::Reset);
                 }
             });
@@ -474,7 +474,7 @@ pub const HELP: &[(&str, &str)] = &[
     ("0 1 2 3", "no tool / select tool 1–3"),
     ("Space", "run / pause"),
     ("S", "single step (paused)"),
-    ("R", "reset the scenario (replay: back to the start)"),
+    ("R", "reset to the relaxed organ at t = 0, kept from the first relaxation (replay: to the start)"),
     ("V", "start / stop recording the session (recordings/)"),
     ("T", "replay: take over from here"),
     ("F", "cycle the tissue colour field"),
