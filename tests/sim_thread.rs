@@ -84,14 +84,10 @@ fn reset_after_the_relaxation_restores_the_relaxed_state() {
 }
 
 fn reset_restores(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
-    let base = common::scenes::perfused_block();
     // a relaxation of a few steps (Δt ≈ 1.3e-5 s)
-    let sc = Scenario::from_str_with_overrides(
-        &ron::ser::to_string(&base).expect("ron"),
-        "block",
-        &["relaxation=Some(Relaxation(duration: 4e-5, damping: 20.0, gravity_solid_only: true))".into()],
-    )
-    .expect("valid");
+    let sc = common::scenes::perfused_block()
+        .with_override("relaxation=Some(Relaxation(duration: 4e-5, damping: 20.0, gravity_solid_only: true))")
+        .expect("valid");
     let (tx, rx) = std::sync::mpsc::channel();
     let shared = Arc::new(Shared::default());
     let handle = spawn(ctx, use_gpu, sc, true, None, rx, shared.clone()).expect("thread");
