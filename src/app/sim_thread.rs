@@ -685,10 +685,8 @@ impl Runner {
         }
     }
 
-    /// End of the relaxation (undamped from t = 0, a keyframe) and the periodic keyframes of a
-    /// recording.
-    /// Ends the relaxation when its time has come (returns whether it did) and writes the recording's
-    /// keyframes.
+    /// End of the relaxation (undamped from t = 0, a keyframe; returns whether it ended now) and the
+    /// periodic keyframes of a recording.
     fn after_live_batch(
         rs: &mut RecordedSimulation,
         shared: &Shared,
@@ -723,7 +721,7 @@ impl Runner {
 
     /// Reset of a live run whose relaxation has been kept: the simulation goes back to that state (the
     /// recording, if any, ends as on every reset; one started later begins with a keyframe of it).
-    /// Returns false (and changes nothing) when there is none to restore, or restoring failed.
+    /// Returns false when there is none to restore or restoring failed: the caller then rebuilds.
     fn restore_relaxed(&mut self) -> bool {
         let Some(kept) = self.relaxed.as_ref() else { return false };
         if !matches!(self.sim, Some(Mode::Live(_))) {
