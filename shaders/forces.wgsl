@@ -178,11 +178,9 @@ fn hourglass_pair(fit_i: mat3x3<f32>, fit_j: mat3x3<f32>, x_ref_ij: vec3<f32>, x
 }
 
 // The factor on G of the hourglass control for bond (i, j) (forces.rs `hourglass_stiffness`): the mean of
-// the two ends' C10, C01 factors (membrane_stiffness on a capsule particle, 1 elsewhere).
+// the two ends' C10, C01 factors (common.wgsl stiffness_factor).
 fn hourglass_stiffness(flags_i: u32, flags_j: u32) -> f32 {
-    let ki = select(1.0, params.membrane_stiffness, (flags_i & SOLID_MEMBRANE) != 0u);
-    let kj = select(1.0, params.membrane_stiffness, (flags_j & SOLID_MEMBRANE) != 0u);
-    return 0.5 * (ki + kj);
+    return 0.5 * (stiffness_factor(flags_i) + stiffness_factor(flags_j));
 }
 
 fn liquid_gravity() -> vec3<f32> {

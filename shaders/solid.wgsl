@@ -100,7 +100,7 @@ fn solid_stress(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     // a membrane (capsule) particle's C10, C01 are the tissue's times membrane_stiffness
-    let k = select(1.0, params.membrane_stiffness, (solid_flags[i] & SOLID_MEMBRANE) != 0u);
+    let k = stiffness_factor(solid_flags[i]);
     let t = mooney_rivlin_tau(m3_load(solid_f[i]), params.c10 * k, params.c01 * k);
     let d = solid_dens[i];
     let sigma = m3_sub(t, m3_scale(m3_identity(), d.z * d.w));

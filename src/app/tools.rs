@@ -50,6 +50,11 @@ impl ToolScene<'_> {
         self.objects.iter().enumerate().find(|(_, o)| o.tool.as_ref().is_some_and(|t| t.kind == kind))
     }
 
+    /// Scenario coordinates to simulation coordinates (`to_world`'s inverse).
+    fn to_sim(&self, v: &V3) -> Vec3 {
+        Vec3::new((v[0] - self.origin[0]) as f32, (v[1] - self.origin[1]) as f32, (v[2] - self.origin[2]) as f32)
+    }
+
     fn to_world(&self, p: Vec3) -> V3 {
         [p.x as f64 + self.origin[0], p.y as f64 + self.origin[1], p.z as f64 + self.origin[2]]
     }
@@ -91,8 +96,7 @@ impl ToolScene<'_> {
     /// no floor.
     fn floor_under(&self, c: Vec3, half: Vec3) -> Option<f32> {
         let tool_top = c.dot(self.up) + half.dot(self.up.abs());
-        let origin = Vec3::new(self.origin[0] as f32, self.origin[1] as f32, self.origin[2] as f32);
-        let sim = |v: &V3| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32) - origin;
+        let sim = |v: &V3| self.to_sim(v);
         let [a, b] = self.across();
         let mut top: Option<f32> = None;
         let mut raise = |h: f32| top = Some(top.map_or(h, |t| t.max(h)));
@@ -146,8 +150,7 @@ impl ToolScene<'_> {
     /// Whether a sphere of radius `r` at `c` comes within one particle spacing of a rigid object other
     /// than the tools.
     fn sphere_blocked(&self, c: Vec3, r: f32) -> bool {
-        let origin = Vec3::new(self.origin[0] as f32, self.origin[1] as f32, self.origin[2] as f32);
-        let sim = |v: &V3| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32) - origin;
+        let sim = |v: &V3| self.to_sim(v);
         let reach = r + self.dx;
         self.objects.iter().filter(|o| o.tool.is_none()).any(|o| {
             if o.moulded {
@@ -292,25 +295,9 @@ impl ToolInput {
     }
 }
 
-/// How far the ray (o, d) from a point o inside the box [lo, hi] runs before it leaves the box (slab
-/// method; |d| = 1); 0 when o is outside.
-fn exit_distance(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> f32 {
-    let mut t1 = f32::INFINITY;
-    for a in 0..3 {
-        if o[a] < lo[a] - 1e-6 || o[a] > hi[a] + 1e-6 {
-            return 0.0;
-        }
-        if d[a] > 1e-9 {
-            t1 = t1.min((hi[a] - o[a]) / d[a]);
-        } else if d[a] < -1e-9 {
-            t1 = t1.min((lo[a] - o[a]) / d[a]);
-        }
-    }
-    if t1.is_finite() { t1.max(0.0) } else { 0.0 }
-}
-
-/// Where the ray (o, d) enters the box [lo, hi] (slab method), if it does.
-fn entry_point(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<Vec3> {
+/// The parameters [t0, t1] (t0 ≥ 0) over which the ray (o, d) lies in the box [lo, hi] (slab method),
+/// if it meets the box.
+fn slab(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<(f32, f32)> {
     let mut t0 = 0.0f32;
     let mut t1 = f32::INFINITY;
     for a in 0..3 {
@@ -327,7 +314,21 @@ fn entry_point(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<Vec3> {
         t0 = t0.max(ta);
         t1 = t1.min(tb);
     }
-    (t0 <= t1).then_some(o + d * t0)
+    (t0 <= t1).then_some((t0, t1))
+}
+
+/// How far the ray (o, d) from a point o inside the box [lo, hi] runs before it leaves the box
+/// (|d| = 1); 0 when o is outside or the ray never leaves.
+fn exit_distance(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> f32 {
+    match slab(o, d, lo - Vec3::splat(1e-6), hi + Vec3::splat(1e-6)) {
+        Some((t0, t1)) if t0 == 0.0 && t1.is_finite() => t1,
+        _ => 0.0,
+    }
+}
+
+/// Where the ray (o, d) enters the box [lo, hi], if it does (o itself when it starts inside).
+fn entry_point(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<Vec3> {
+    slab(o, d, lo, hi).map(|(t0, _)| o + d * t0)
 }
 
 #[cfg(test)]
