@@ -643,13 +643,14 @@ fn lap_viscosity(k: KernelConsts, r: f32) -> f32 {
 // neighbours and their order, so the results do not depend on which invocation computes them (the
 // CPU twin iterates in id order). The lists are current whenever a neighbour pass runs: the grids
 // are rebuilt after every advance and every host-side state change (passes.rs PLACE_AND_BIN).
-// Integer cell coordinates of x, clamped into the grid (grid_cell_coords).
+
 // Factor on C10, C01 of a solid particle with these flags (params.rs `stiffness_factor`):
 // membrane_stiffness for the capsule, 1 for the tissue.
 fn stiffness_factor(flags: u32) -> f32 {
     return select(1.0, params.membrane_stiffness, (flags & SOLID_MEMBRANE) != 0u);
 }
 
+// Integer cell coordinates of x, clamped into the grid (grid_cell_coords).
 fn cell_coords(x: vec3<f32>) -> vec3<i32> {
     // Per component, no vector-index loop (dynamic indexing of a vector is slow on several drivers).
     let f = floor((x - params.grid_min.xyz) / params.grid_cell.xyz);
