@@ -262,6 +262,11 @@ enum Cmd {
         out: PathBuf,
         #[arg(long, value_enum, default_value = "auto")]
         backend: Backend,
+        /// Edit the named case's scenario (liver_scalpel*, projectile, syringe) after its preset, as
+        /// `perfuse run --set` does, e.g. `--set numerics.hourglass=0.72`; repeatable; `report.json`
+        /// lists the edits under `overrides`.
+        #[arg(long = "set", value_name = "FIELD=VALUE")]
+        set: Vec<String>,
     },
 }
 
@@ -745,9 +750,9 @@ fn real_main() -> Result<()> {
             }
             Ok(())
         }
-        Cmd::Validate { case, quick, out, backend } => {
+        Cmd::Validate { case, quick, out, backend, set } => {
             let report =
-                perfuse::analysis::validate::run_validation(case.as_deref(), quick, &out, backend.into(), true)?;
+                perfuse::analysis::validate::run_validation(case.as_deref(), quick, &out, backend.into(), true, &set)?;
             for c in &report.cases {
                 println!(
                     "{:<28} {:<22} {:>10.4} (tol {:>7.4})  {}  {:.1} s",

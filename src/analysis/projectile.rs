@@ -15,7 +15,7 @@
 //! rendered where an adapter is.
 
 use super::frames::simulation_with_frames;
-use super::validate::{CaseResult, Invariants, ValidationError, advance_to, at_least, at_most};
+use super::validate::{CaseResult, Invariants, Pace, ValidationError, advance_to, at_least, at_most};
 use crate::scenario::{Motion, Region, Scenario};
 use crate::sim::{BackendKind, State};
 use std::path::Path;
@@ -170,6 +170,8 @@ pub fn run(
     let mut prev = s0.clone();
     let (mut exit_seen, mut tunnel_seen) = (false, false);
     let mut t_next = 5e-4f64;
+    let mut pace = Pace::new(&sim);
+    let mut next_pace = sim.time() + 0.01;
     while sim.time() < sc.duration - 1e-9 {
         let t = advance_to(&mut sim, t_next.min(sc.duration))?;
         if t < t_next.min(sc.duration) - 1e-9 {
@@ -177,6 +179,10 @@ pub fn run(
         }
         let s = sim.read_state()?;
         inv.check(&sim, &s);
+        if t >= next_pace - 1e-9 {
+            pace.log(&sc.name, &sim);
+            next_pace += 0.01;
+        }
         // bonds that broke since the last sample, located at their midpoint now (the lists keep their
         // ascending order as bonds drop out, so a merge walk finds them)
         if s.broken_bonds() != prev.broken_bonds() {
@@ -293,15 +299,17 @@ pub fn validate(
     backend: BackendKind,
     out: &Path,
     _progress: bool,
+    overrides: &[String],
 ) -> Result<Vec<CaseResult>, ValidationError> {
     let started = Instant::now();
-    let ov = if quick {
+    let mut ov = if quick {
         let mut ov = lattice_overrides(12, 11);
         ov.push(format!("duration={QUICK_DURATION}"));
         ov
     } else {
         Vec::new()
     };
+    ov.extend_from_slice(overrides);
     let sc = Scenario::from_str_with_overrides(PROJECTILE, "assets/scenarios/projectile.ron", &ov)?;
     let o = run(&sc, backend, Some((out, "projectile")))?;
     Ok(rows(&o, started.elapsed().as_secs_f64()))

@@ -14,7 +14,9 @@
 
 use super::frames::simulation_with_frames;
 use super::plot::{Chart, Series};
-use super::validate::{CaseResult, Invariants, ValidationError, advance_to, at_least, at_most, plot_into, reported};
+use super::validate::{
+    CaseResult, Invariants, Pace, ValidationError, advance_to, at_least, at_most, plot_into, reported,
+};
 use crate::scenario::{Scenario, SolidFlags};
 use crate::sim::{BackendKind, State};
 use std::path::Path;
@@ -166,6 +168,7 @@ pub fn run(
     let sample = 0.05f64;
     let mut k = 1u32;
     let mut s = s0.clone();
+    let mut pace = Pace::new(&sim);
     while sim.time() < sc.duration - 1e-9 {
         let target = (f64::from(k) * sample).min(sc.duration);
         let t = advance_to(&mut sim, target)?;
@@ -173,6 +176,7 @@ pub fn run(
             continue;
         }
         s = sim.read_state()?;
+        pace.log(&sc.name, &sim);
         inv.check(&sim, &s);
         let outside = s.liquid_outside();
         out.outside_history.push((t, outside as f64 / n_l));
@@ -304,6 +308,7 @@ pub fn validate(
     backend: BackendKind,
     out: &Path,
     progress: bool,
+    overrides: &[String],
 ) -> Result<Vec<CaseResult>, ValidationError> {
     let dx = if quick { CI_DX } else { DESKTOP_DX };
     let mut result = Vec::new();
@@ -313,7 +318,7 @@ pub fn validate(
         let sc = Scenario::from_str_with_overrides(
             LIVER_SCALPEL,
             "assets/scenarios/liver_scalpel.ron",
-            &preset_overrides(dx, variant),
+            &[preset_overrides(dx, variant), overrides.to_vec()].concat(),
         )?;
         let short = if variant == Variant::Product { "L2" } else { "L1" };
         let o = run(&sc, backend, progress, Some((out, &format!("liver_scalpel_{short}"))))?;

@@ -20,7 +20,7 @@
 
 use super::frames::simulation_with_frames;
 use super::plot::{Chart, Series};
-use super::validate::{CaseResult, Invariants, ValidationError, advance_to, at_least, at_most, plot_into};
+use super::validate::{CaseResult, Invariants, Pace, ValidationError, advance_to, at_least, at_most, plot_into};
 use crate::sim::{BackendKind, State};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -309,6 +309,7 @@ pub fn run(
     inv.check(&sim, &s0);
     let mut s = s0.clone();
     let mut k = 1u32;
+    let mut pace = Pace::new(&sim);
     while sim.time() < sc.duration - 1e-9 {
         let target = (f64::from(k) * sample).min(sc.duration);
         let t = advance_to(&mut sim, target)?;
@@ -317,6 +318,7 @@ pub fn run(
         }
         s = sim.read_state()?;
         inv.check(&sim, &s);
+        pace.log(&sc.name, &sim);
         let drawn = outside0 - outside_syringe(g, &p, &s);
         out.drawn.push((t, drawn));
         let leaked = liquid_volume(&p, &s, |i, x| {
@@ -371,11 +373,12 @@ pub fn validate(
     backend: BackendKind,
     out: &Path,
     _progress: bool,
+    overrides: &[String],
 ) -> Result<Vec<CaseResult>, ValidationError> {
     let started = Instant::now();
     let (ns, nl) = if quick { (12, 11) } else { (32, 30) };
     let text = if quick { scenario_ron(ns, nl, 2.0) } else { SYRINGE.to_string() };
-    let sc = crate::scenario::Scenario::from_str_with_overrides(&text, "assets/scenarios/syringe.ron", &[])?;
+    let sc = crate::scenario::Scenario::from_str_with_overrides(&text, "assets/scenarios/syringe.ron", overrides)?;
     let g = Geometry::new(ns, nl);
     let o = run(&sc, &g, backend, Some((out, "syringe")), (0.05, 0.1))?;
     plot_into(

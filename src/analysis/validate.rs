@@ -30,6 +30,9 @@ pub const CASES: [&str; 5] = ["poiseuille", "brinkman", "convergence", "hydrosta
 pub const EXTRA_CASES: [&str; 7] =
     ["wicking", "liver_scalpel", "liver_scalpel_L1", "liver_scalpel_L2", "projectile", "syringe", "dmd"];
 
+/// The cases `--set` may edit: each runs one scenario file (re-gridded by its preset).
+pub const SET_CASES: [&str; 5] = ["liver_scalpel", "liver_scalpel_L1", "liver_scalpel_L2", "projectile", "syringe"];
+
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ValidationError {
@@ -37,6 +40,10 @@ pub enum ValidationError {
         "unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever, wicking, liver_scalpel, liver_scalpel_L1, liver_scalpel_L2, projectile, syringe, dmd"
     )]
     UnknownCase(String),
+    #[error(
+        "--set applies to one named case of liver_scalpel, liver_scalpel_L1, liver_scalpel_L2, projectile or syringe (whose scenario files it edits), not to {0} — run `perfuse run FILE --set …` to probe another scenario"
+    )]
+    SetNotSupported(String),
     #[error(transparent)]
     Scenario(#[from] ScenarioError),
     #[error(transparent)]
@@ -61,6 +68,8 @@ pub struct CaseResult {
 pub struct Report {
     pub quick: bool,
     pub backend: String,
+    /// The `--set FIELD=VALUE` edits applied on top of the case's own (empty for the standard figures).
+    pub overrides: Vec<String>,
     pub cases: Vec<CaseResult>,
 }
 
@@ -114,19 +123,25 @@ fn row(name: &str, resolution: &str, metric: &str, value: f64, tolerance: f64, w
     }
 }
 
-/// Runs the selected (or all) cases, writes `report.json` and the PNG plots into `out`.
+/// Runs the selected (or all) cases, writes `report.json` and the PNG plots into `out`. `overrides`
+/// (`--set FIELD=VALUE`, as for `perfuse run`) edit the scenario of a named liver_scalpel, projectile or
+/// syringe case after its preset's own edits — a probe of a parameter against the case's criteria.
 pub fn run_validation(
     case: Option<&str>,
     quick: bool,
     out: &Path,
     backend: BackendKind,
     progress: bool,
+    overrides: &[String],
 ) -> Result<Report, ValidationError> {
     if let Some(c) = case
         && !CASES.contains(&c)
         && !EXTRA_CASES.contains(&c)
     {
         return Err(ValidationError::UnknownCase(c.to_string()));
+    }
+    if !overrides.is_empty() && !matches!(case, Some(c) if SET_CASES.contains(&c)) {
+        return Err(ValidationError::SetNotSupported(case.unwrap_or("all standard cases").to_string()));
     }
     std::fs::create_dir_all(out)
         .map_err(|e| ValidationError::Io { path: out.display().to_string(), message: e.to_string() })?;
@@ -153,16 +168,16 @@ pub fn run_validation(
                     "liver_scalpel_L2" => &[Variant::Product],
                     _ => &[Variant::Product, Variant::Thesis],
                 };
-                super::scalpel::validate(variants, ctx.quick, ctx.backend, ctx.out, ctx.progress)?
+                super::scalpel::validate(variants, ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides)?
             }
-            "projectile" => super::projectile::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
-            "syringe" => super::syringe::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
+            "projectile" => super::projectile::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides)?,
+            "syringe" => super::syringe::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides)?,
             "dmd" => super::dmd_cases::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
             _ => cantilever(&ctx)?,
         };
         cases.extend(rows);
     }
-    let report = Report { quick, backend: format!("{backend:?}").to_lowercase(), cases };
+    let report = Report { quick, backend: format!("{backend:?}").to_lowercase(), overrides: overrides.to_vec(), cases };
     let path = out.join("report.json");
     let text = serde_json::to_string_pretty(&report)
         .map_err(|e| ValidationError::Io { path: path.display().to_string(), message: e.to_string() })?;
@@ -410,6 +425,41 @@ pub(crate) fn advance_to(sim: &mut Simulation, target: f64) -> Result<f64, SimEr
         sim.advance(1, f64::INFINITY)?;
     }
     Ok(sim.time())
+}
+
+/// A log line per sample of a long case: the steps since the last sample, their mean Δt, the criterion
+/// that limited most of them and the wall time they took — how a run's pace changes as it goes (e.g.
+/// when a blade starts cutting).
+pub(crate) struct Pace {
+    stats: crate::sim::RunStats,
+    t: f64,
+    wall: std::time::Instant,
+}
+
+impl Pace {
+    pub(crate) fn new(sim: &Simulation) -> Self {
+        Self { stats: sim.stats().clone(), t: sim.time(), wall: std::time::Instant::now() }
+    }
+
+    /// Logs the pace since the last call (or `new`) and starts the next interval.
+    pub(crate) fn log(&mut self, name: &str, sim: &Simulation) {
+        let now = sim.stats();
+        let steps = now.steps.saturating_sub(self.stats.steps);
+        let limit = now
+            .dt_limited_by
+            .iter()
+            .map(|(k, n)| (k, n.saturating_sub(self.stats.dt_limited_by.get(k).copied().unwrap_or(0))))
+            .max_by_key(|(_, n)| *n)
+            .map_or("-", |(k, _)| k.as_str());
+        log::info!(
+            "{name}: t = {:.3} s, {steps} steps since t = {:.3} s (mean dt {:.2e} s, mostly limited by {limit}), {:.1} s wall",
+            sim.time(),
+            self.t,
+            (sim.time() - self.t) / steps.max(1) as f64,
+            self.wall.elapsed().as_secs_f64()
+        );
+        *self = Self::new(sim);
+    }
 }
 
 fn missing(what: &str) -> ValidationError {
