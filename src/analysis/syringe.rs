@@ -267,6 +267,37 @@ fn liquid_volume(p: &crate::sim::params::Params, s: &State, keep: impl Fn(usize,
         .sum()
 }
 
+/// Where the leaked blood is (a diagnostic log line): how many particles, how many of them primed blood
+/// from the syringe (fraction 1, so a mass of at least 0.7ρ₀Δx_l³) and how many perfusing blood from the
+/// tissue, and the leaked particles' mean position and height range (world, mm) — below the specimen's
+/// top (oozing through the capsule) or above it (along the needle's shaft or out of the barrel).
+fn log_leak(name: &str, g: &Geometry, p: &crate::sim::params::Params, s: &State, reach: f64) {
+    let primed_mass = 0.7 * f64::from(p.rho0_l) * f64::from(p.dx_liquid).powi(3);
+    let (mut n, mut primed, mut sum, mut z_lo, mut z_hi) = (0usize, 0usize, [0.0f64; 3], f64::INFINITY, f64::MIN);
+    for i in 0..s.liquid.len() {
+        let x = p.to_world(s.liquid.pos[i]);
+        if s.liquid.n_s[i] < crate::sim::state::LIQUID_OUTSIDE_NS && !g.inside(x) && !g.at_needle(x, reach) {
+            n += 1;
+            primed += usize::from(f64::from(s.liquid.mass[i]) >= primed_mass);
+            (0..3).for_each(|a| sum[a] += x[a]);
+            z_lo = z_lo.min(x[2]);
+            z_hi = z_hi.max(x[2]);
+        }
+    }
+    if n > 0 {
+        let c = sum.map(|v| v / n as f64 * 1e3);
+        log::info!(
+            "{name}: leaked {n} particles ({primed} primed, {} perfusing), mean at ({:.1}, {:.1}, {:.1}) mm, z {:.1} … {:.1} mm",
+            n - primed,
+            c[0],
+            c[1],
+            c[2],
+            z_lo * 1e3,
+            z_hi * 1e3
+        );
+    }
+}
+
 /// Volume of the liquid outside the syringe: the specimen's blood, and any that left it elsewhere.
 /// What it loses was drawn (the primed blood, whose particles carry more mass, starts inside and is
 /// sunk from inside, so it never counts).
@@ -326,6 +357,7 @@ pub fn run(
         });
         out.leaked_max = out.leaked_max.max(leaked / out.liquid_volume.max(f64::MIN_POSITIVE));
         log::info!("{}: t = {t:.3} s, drawn {drawn:.3e} m³, leaked {leaked:.2e} m³", sc.name);
+        log_leak(&sc.name, g, &p, &s, reach);
         k += 1;
     }
     if let Some(f) = &mut frames {
