@@ -39,7 +39,7 @@ struct SimParams {
     gravity: vec4<f32>,
     // n_liquid, n_solid, n_boundary, bond_capacity
     counts: vec4<u32>,
-    // three_d, av_liquid, liquid_tension, n_objects
+    // three_d, av_liquid, liquid_tension_below_ns (f32 bits), n_objects
     switches: vec4<u32>,
     rho0_l: f32,
     rho0_s: f32,

@@ -75,8 +75,10 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let n_s = sum_s / params.rho0_s;
     let n_l = rho / params.rho0_l;
     let raw = params.k_l * (n_s + n_l - 1.0 + params.c1 * n_s * n_l);
+    // (2.53) clamped at 0 unless the liquid may take tension here: switches.z holds the bits of
+    // Params::liquid_tension_below_ns (0.0 without liquid_tension, +inf for everywhere)
     var pr = raw;
-    if (params.switches.z == 0u) {
+    if (!(n_s < bitcast<f32>(params.switches.z))) {
         pr = max(raw, 0.0);
     }
     // CPU: n_l = rho / rho0_l computed again from the stored ρ (same operation).

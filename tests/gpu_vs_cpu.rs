@@ -268,6 +268,47 @@ fn density_passes_match_cpu() {
     });
 }
 
+/// `numerics.liquid_tension_below_ns` on both back-ends (the syringe's free blood may take tension, the
+/// blood in tissue may not; README, `syringe.ron`): the wicking block with the limit nˢ < 0.1, so that
+/// the free drop may go negative and the liquid in the fabric (nˢ ≈ 0.3) may not. The liquid pressures
+/// agree as in `density_passes_match_cpu` (1e-6 of the penalty stiffness), and on both back-ends no
+/// particle at nˢ ≥ 0.1 is under tension while some below it are — and some at nˢ ≥ 0.1 would be
+/// without the limit ((2.53) unclamped), so the scene exercises the clamp.
+#[test]
+fn tension_limit_matches_cpu() {
+    gpu_test("tension_limit_matches_cpu", |ctx| {
+        let mut sc = wicking_block();
+        let limit = 0.1f32;
+        sc.numerics.liquid_tension_below_ns = Some(f64::from(limit));
+        let mut cpu = stepped(solver_for(&sc), 20);
+        let mut gpu = gpu_from(ctx, &cpu);
+        gpu.run_stages(&[Stage::Pass(passes::DENSITY_LIQUID)]).unwrap();
+        cpu_evaluate(&mut cpu);
+        let (l, p) = (&cpu.st.liquid, &cpu.params);
+        let ld: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidDens, l.x.len()).unwrap();
+        let gpu_p: Vec<f32> = ld.iter().map(|x| x[3]).collect();
+        let d_p = max_abs_diff(&gpu_p, &l.p);
+        let count =
+            |pr: &[f32], keep: &dyn Fn(usize) -> bool| (0..pr.len()).filter(|&i| keep(i) && pr[i] < 0.0).count();
+        let raw: Vec<f32> =
+            (0..l.x.len()).map(|i| p.k_l * (l.n_s[i] + l.n_l[i] - 1.0 + p.c1 * l.n_s[i] * l.n_l[i])).collect();
+        let above = |i: usize| l.n_s[i] >= limit;
+        let below = |i: usize| l.n_s[i] < limit;
+        let (cpu_above, gpu_above) = (count(&l.p, &above), count(&gpu_p, &above));
+        let (cpu_below, gpu_below, raw_above) = (count(&l.p, &below), count(&gpu_p, &below), count(&raw, &above));
+        eprintln!(
+            "tension limit nˢ < {limit}: p GPU − CPU {d_p:.3e} (max {:.3e}); under tension at nˢ ≥ limit: CPU {cpu_above}, \
+             GPU {gpu_above} (unclamped {raw_above}); below it: CPU {cpu_below}, GPU {gpu_below} of {}",
+            max_abs(&l.p),
+            l.x.len()
+        );
+        assert!(d_p <= 1e-6 * p.k_l.max(1.0));
+        assert!(raw_above > 0, "the scene must put liquid at nˢ ≥ {limit} under tension without the limit");
+        assert_eq!((cpu_above, gpu_above), (0, 0), "tension where the liquid sees nˢ ≥ {limit}");
+        assert!(cpu_below > 0 && gpu_below > 0, "the free liquid keeps its tension");
+    });
+}
+
 /// solid_stress (τ, R), forces_liquid / forces_solid (2.48), (2.50) and XSPH (2.69) on the same
 /// inputs. Tolerances: τ, R relative 1e-4 of their largest entry; accelerations 1e-4 of max |a|;
 /// XSPH velocities 1e-5 of max |v| (plus 1e-9 m/s).

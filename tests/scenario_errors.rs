@@ -179,6 +179,16 @@ fn artificial_pressure_needs_tension_and_a_sane_exponent() {
 }
 
 #[test]
+fn tension_limit_needs_tension_and_a_fraction() {
+    let tl = |body: &str| edit("dt_max: 1e-3", &format!("dt_max: 1e-3, {body}"));
+    expect(&tl("liquid_tension_below_ns: Some(0.05)"), &["numerics.liquid_tension_below_ns", "liquid_tension: true"]);
+    expect(
+        &tl("liquid_tension: true, liquid_tension_below_ns: Some(1.5)"),
+        &["numerics.liquid_tension_below_ns", "[0, 1]"],
+    );
+}
+
+#[test]
 fn dt_bound_never_met() {
     expect(&edit("dt_min: 1e-9, dt_max: 1e-3", "dt_min: 1e-2, dt_max: 1.0"), &["numerics.dt_min", "can never be met"]);
 }

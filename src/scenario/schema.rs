@@ -248,6 +248,12 @@ pub struct Numerics {
     /// artificial tension that tears free surfaces apart (README: deviations from SPEC).
     #[serde(default)]
     pub liquid_tension: bool,
+    /// With `liquid_tension`: let the pressure go negative only where the liquid sees a solid fraction
+    /// nˢ below this (e.g. 0.05: the free blood of a primed syringe, not the blood perfusing tissue, where
+    /// (2.53)'s negative side is an undersaturation, not a tension, and unclamped it sets the tissue's
+    /// blood into the tensile instability: README, `syringe.ron`). Absent: everywhere.
+    #[serde(default)]
+    pub liquid_tension_below_ns: Option<f64>,
     /// Speed [m/s] above which a particle counts as runaway (divergence); default 20·c_max.
     #[serde(default)]
     pub max_speed: Option<f64>,

@@ -249,6 +249,16 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
             "the thesis uses 4",
         ));
     }
+    if let Some(v) = n.liquid_tension_below_ns {
+        if !n.liquid_tension {
+            return Err(Check::fail(
+                "numerics.liquid_tension_below_ns",
+                "is set but the liquid sustains no tension (liquid_tension: false), so it would never act",
+                "add liquid_tension: true, or remove liquid_tension_below_ns",
+            ));
+        }
+        Check::range("numerics.liquid_tension_below_ns", v, 0.0, 1.0, "a solid fraction nˢ, e.g. 0.05")?;
+    }
     if let Some(a) = &n.liquid_artificial_pressure {
         if !n.liquid_tension {
             return Err(Check::fail(

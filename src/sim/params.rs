@@ -34,6 +34,9 @@ pub struct Params {
     pub cohesion_lb: f32,
     /// Allow negative liquid pressure (`numerics.liquid_tension`).
     pub liquid_tension: bool,
+    /// Where it may go negative: nˢ below this (`numerics.liquid_tension_below_ns`; +∞ when absent, 0
+    /// without `liquid_tension`, so that `n_s < liquid_tension_below_ns` is the whole rule).
+    pub liquid_tension_below_ns: f32,
     /// Hourglass-control coefficient c of `numerics.hourglass` (0: off).
     pub hourglass: f32,
     /// Ligament springs of the tethered solid particles: ω² [1/s²] and 2ζω [1/s] (`ligaments`; 0: none).
@@ -219,6 +222,11 @@ impl Params {
             cohesion_ll: cohesion_ll as f32,
             cohesion_lb: cohesion_lb as f32,
             liquid_tension: n.liquid_tension,
+            liquid_tension_below_ns: if n.liquid_tension {
+                n.liquid_tension_below_ns.map_or(f32::INFINITY, |v| v as f32)
+            } else {
+                0.0
+            },
             hourglass: n.hourglass.unwrap_or(0.0) as f32,
             tether_omega2: tether_omega.powi(2) as f32,
             tether_damping: tether_zeta_2omega as f32,

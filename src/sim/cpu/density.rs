@@ -41,7 +41,8 @@ pub fn density_liquid(
             let n_s = sum_s / p.rho0_s;
             let n_l = rho / p.rho0_l;
             let raw = p.k_l * (n_s + n_l - 1.0 + p.c1 * n_s * n_l);
-            let pr = if p.liquid_tension { raw } else { raw.max(0.0) };
+            // (2.53) clamped at 0 unless the liquid may take tension here (`liquid_tension_below_ns`)
+            let pr = if n_s < p.liquid_tension_below_ns { raw } else { raw.max(0.0) };
             (rho, n_s, pr)
         })
         .collect();

@@ -142,7 +142,12 @@ impl SimParams {
             domain_max: v4(p.domain_max),
             gravity: [gravity.x, gravity.y, gravity.z, if gravity_liquid { 1.0 } else { 0.0 }],
             counts: [c.liquid, c.solid, c.boundary, c.bond_capacity],
-            switches: [u32::from(p.dim == Dim::Three), u32::from(p.av_liquid), u32::from(p.liquid_tension), c.objects],
+            switches: [
+                u32::from(p.dim == Dim::Three),
+                u32::from(p.av_liquid),
+                p.liquid_tension_below_ns.to_bits(),
+                c.objects,
+            ],
             rho0_l: p.rho0_l,
             rho0_s: p.rho0_s,
             eta: p.eta,
