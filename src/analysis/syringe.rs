@@ -267,6 +267,12 @@ fn liquid_volume(p: &crate::sim::params::Params, s: &State, keep: impl Fn(usize,
         .sum()
 }
 
+/// Liquid particle `i` at world position `x` has leaked: outside the tissue (it sees almost no solid),
+/// outside the syringe and farther than `reach` from the needle.
+fn leaked_at(g: &Geometry, s: &State, i: usize, x: [f64; 3], reach: f64) -> bool {
+    s.liquid.n_s[i] < crate::sim::state::LIQUID_OUTSIDE_NS && !g.inside(x) && !g.at_needle(x, reach)
+}
+
 /// Where the leaked blood is (a diagnostic log line): how many particles, how many of them primed blood
 /// from the syringe (fraction 1, so a mass of at least 0.7ρ₀Δx_l³) and how many perfusing blood from the
 /// tissue, and the leaked particles' mean position and height range (world, mm) — below the specimen's
@@ -276,7 +282,7 @@ fn log_leak(name: &str, g: &Geometry, p: &crate::sim::params::Params, s: &State,
     let (mut n, mut primed, mut sum, mut z_lo, mut z_hi) = (0usize, 0usize, [0.0f64; 3], f64::INFINITY, f64::MIN);
     for i in 0..s.liquid.len() {
         let x = p.to_world(s.liquid.pos[i]);
-        if s.liquid.n_s[i] < crate::sim::state::LIQUID_OUTSIDE_NS && !g.inside(x) && !g.at_needle(x, reach) {
+        if leaked_at(g, s, i, x, reach) {
             n += 1;
             primed += usize::from(f64::from(s.liquid.mass[i]) >= primed_mass);
             (0..3).for_each(|a| sum[a] += x[a]);
@@ -352,9 +358,7 @@ pub fn run(
         pace.log(&sc.name, &sim);
         let drawn = outside0 - outside_syringe(g, &p, &s);
         out.drawn.push((t, drawn));
-        let leaked = liquid_volume(&p, &s, |i, x| {
-            s.liquid.n_s[i] < crate::sim::state::LIQUID_OUTSIDE_NS && !g.inside(x) && !g.at_needle(x, reach)
-        });
+        let leaked = liquid_volume(&p, &s, |i, x| leaked_at(g, &s, i, x, reach));
         out.leaked_max = out.leaked_max.max(leaked / out.liquid_volume.max(f64::MIN_POSITIVE));
         log::info!("{}: t = {t:.3} s, drawn {drawn:.3e} m³, leaked {leaked:.2e} m³", sc.name);
         log_leak(&sc.name, g, &p, &s, reach);

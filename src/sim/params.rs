@@ -32,10 +32,9 @@ pub struct Params {
     /// Pairwise surface-tension strengths [N] of (3.3): liquid–liquid s_ll and liquid–boundary s_lb.
     pub cohesion_ll: f32,
     pub cohesion_lb: f32,
-    /// Allow negative liquid pressure (`numerics.liquid_tension`).
-    pub liquid_tension: bool,
-    /// Where it may go negative: nˢ below this (`numerics.liquid_tension_below_ns`; +∞ when absent, 0
-    /// without `liquid_tension`, so that `n_s < liquid_tension_below_ns` is the whole rule).
+    /// Where the liquid pressure may go negative: nˢ below this (`numerics.liquid_tension` and
+    /// `liquid_tension_below_ns`; +∞ for everywhere, 0 without `liquid_tension`, so that
+    /// `n_s < liquid_tension_below_ns` is the whole rule).
     pub liquid_tension_below_ns: f32,
     /// Hourglass-control coefficient c of `numerics.hourglass` (0: off).
     pub hourglass: f32,
@@ -221,7 +220,6 @@ impl Params {
             wicking: wicking as f32,
             cohesion_ll: cohesion_ll as f32,
             cohesion_lb: cohesion_lb as f32,
-            liquid_tension: n.liquid_tension,
             liquid_tension_below_ns: if n.liquid_tension {
                 n.liquid_tension_below_ns.map_or(f32::INFINITY, |v| v as f32)
             } else {
