@@ -41,6 +41,9 @@ struct SimParams {
     counts: vec4<u32>,
     // three_d, av_liquid, liquid_tension_below_ns (f32 bits), n_objects
     switches: vec4<u32>,
+    // Params::liquid_tension_in, regions k < MAX_TENSION_REGIONS as tension[2k], tension[2k + 1]:
+    // w of the first 0 unused, 1 box (xyz min; second: xyz max), 2 sphere (xyz centre; second: w radius²)
+    tension: array<vec4<f32>, 8>,
     rho0_l: f32,
     rho0_s: f32,
     eta: f32,

@@ -2,12 +2,36 @@
 //
 // * density_liquid: ρˡ by summation over L ∪ B_l (2.46) (membrane particles count as boundary),
 //   nˡ = ρ/ρ₀ˡ, nˢ by summation of the solid (SPEC D-8), pˡ = k(nˢ + nˡ − 1 + C₁nˢnˡ) (2.53)/(3.5, D-9),
-//   clamped at 0 unless liquid_tension.
+//   clamped at 0 unless liquid_tension and nˢ below its limit or the particle in its region.
 // * density_solid: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
 //   nˡ by summation of the liquid (membrane override 1 − nˢ_sat, §3.1.3),
 //   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52).
 // Neighbour sums run in the canonical order of grid.wgsl, as on the CPU.
 #import common
+
+// Params::liquid_may_pull: the liquid pressure may go negative below the solid fraction limit
+// (switches.z: bits of Params::liquid_tension_below_ns) or in a region of Params::liquid_tension_in
+// (TensionRegion::contains, same comparisons and arithmetic).
+fn liquid_may_pull(x: vec3<f32>, n_s: f32) -> bool {
+    if (n_s < bitcast<f32>(params.switches.z)) {
+        return true;
+    }
+    for (var k = 0u; k < 4u; k++) {
+        let a = params.tension[2u * k];
+        let b = params.tension[2u * k + 1u];
+        if (a.w == 1.0) {
+            if (x.x >= a.x && x.y >= a.y && x.z >= a.z && x.x <= b.x && x.y <= b.y && x.z <= b.z) {
+                return true;
+            }
+        } else if (a.w == 2.0) {
+            let d = x - a.xyz;
+            if (d.x * d.x + d.y * d.y + d.z * d.z <= b.w) {
+                return true;
+            }
+        }
+    }
+    return false;
+}
 
 @compute @workgroup_size(64)
 fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -75,10 +99,9 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let n_s = sum_s / params.rho0_s;
     let n_l = rho / params.rho0_l;
     let raw = params.k_l * (n_s + n_l - 1.0 + params.c1 * n_s * n_l);
-    // (2.53) clamped at 0 unless the liquid may take tension here: switches.z holds the bits of
-    // Params::liquid_tension_below_ns (0.0 without liquid_tension, +inf for everywhere)
+    // (2.53) clamped at 0 unless the liquid may take tension here
     var pr = raw;
-    if (!(n_s < bitcast<f32>(params.switches.z))) {
+    if (!liquid_may_pull(xi, n_s)) {
         pr = max(raw, 0.0);
     }
     // CPU: n_l = rho / rho0_l computed again from the stored ρ (same operation).

@@ -268,44 +268,64 @@ fn density_passes_match_cpu() {
     });
 }
 
-/// `numerics.liquid_tension_below_ns` on both back-ends (the syringe's free blood may take tension, the
-/// blood in tissue may not; README, `syringe.ron`): the wicking block with the limit nˢ < 0.1, so that
-/// the free drop may go negative and the liquid in the fabric (nˢ ≈ 0.3) may not. The liquid pressures
-/// agree as in `density_passes_match_cpu` (1e-6 of the penalty stiffness), and on both back-ends no
-/// particle at nˢ ≥ 0.1 is under tension while some below it are — and some at nˢ ≥ 0.1 would be
-/// without the limit ((2.53) unclamped), so the scene exercises the clamp.
+/// `numerics.liquid_tension_below_ns` and `liquid_tension_in` on both back-ends (the syringe's free
+/// blood and its needle's bore may take tension, the blood in tissue may not; README, `syringe.ron`):
+/// the wicking block with the limit nˢ < 0.1, so that the free drop may go negative and the liquid in
+/// the fabric (nˢ ≈ 0.3) may not — then with a box over half the block and a sphere as regions where the
+/// fabric's liquid may go negative too. The liquid pressures agree as in `density_passes_match_cpu`
+/// (1e-6 of the penalty stiffness), and on both back-ends no particle at nˢ ≥ 0.1 outside the region is
+/// under tension while some below the limit are, and some in the region at nˢ ≥ 0.1 (and some outside
+/// it would be without the clamp, (2.53) unclamped: the scene exercises both sides of the rule).
 #[test]
 fn tension_limit_matches_cpu() {
+    use perfuse::scenario::Region;
     gpu_test("tension_limit_matches_cpu", |ctx| {
-        let mut sc = wicking_block();
         let limit = 0.1f32;
-        sc.numerics.liquid_tension_below_ns = Some(f64::from(limit));
-        let mut cpu = stepped(solver_for(&sc), 20);
-        let mut gpu = gpu_from(ctx, &cpu);
-        gpu.run_stages(&[Stage::Pass(passes::DENSITY_LIQUID)]).unwrap();
-        cpu_evaluate(&mut cpu);
-        let (l, p) = (&cpu.st.liquid, &cpu.params);
-        let ld: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidDens, l.x.len()).unwrap();
-        let gpu_p: Vec<f32> = ld.iter().map(|x| x[3]).collect();
-        let d_p = max_abs_diff(&gpu_p, &l.p);
-        let count =
-            |pr: &[f32], keep: &dyn Fn(usize) -> bool| (0..pr.len()).filter(|&i| keep(i) && pr[i] < 0.0).count();
-        let raw: Vec<f32> =
-            (0..l.x.len()).map(|i| p.k_l * (l.n_s[i] + l.n_l[i] - 1.0 + p.c1 * l.n_s[i] * l.n_l[i])).collect();
-        let above = |i: usize| l.n_s[i] >= limit;
-        let below = |i: usize| l.n_s[i] < limit;
-        let (cpu_above, gpu_above) = (count(&l.p, &above), count(&gpu_p, &above));
-        let (cpu_below, gpu_below, raw_above) = (count(&l.p, &below), count(&gpu_p, &below), count(&raw, &above));
-        eprintln!(
-            "tension limit nˢ < {limit}: p GPU − CPU {d_p:.3e} (max {:.3e}); under tension at nˢ ≥ limit: CPU {cpu_above}, \
-             GPU {gpu_above} (unclamped {raw_above}); below it: CPU {cpu_below}, GPU {gpu_below} of {}",
-            max_abs(&l.p),
-            l.x.len()
-        );
-        assert!(d_p <= 1e-6 * p.k_l.max(1.0));
-        assert!(raw_above > 0, "the scene must put liquid at nˢ ≥ {limit} under tension without the limit");
-        assert_eq!((cpu_above, gpu_above), (0, 0), "tension where the liquid sees nˢ ≥ {limit}");
-        assert!(cpu_below > 0 && gpu_below > 0, "the free liquid keeps its tension");
+        let regions = [
+            None,
+            Some(Region::Box { min: [-1.0, -1.0, -1.0], max: [0.003, 1.0, 1.0] }),
+            Some(Region::Sphere { centre: [0.0, 0.0, 0.0031], radius: 0.004 }),
+        ];
+        for region in regions {
+            let mut sc = wicking_block();
+            sc.numerics.liquid_tension_below_ns = Some(f64::from(limit));
+            sc.numerics.liquid_tension_in = region.clone().into_iter().collect();
+            let mut cpu = stepped(solver_for(&sc), 20);
+            let mut gpu = gpu_from(ctx.clone(), &cpu);
+            gpu.run_stages(&[Stage::Pass(passes::DENSITY_LIQUID)]).unwrap();
+            cpu_evaluate(&mut cpu);
+            let (l, p) = (&cpu.st.liquid, &cpu.params);
+            let ld: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidDens, l.x.len()).unwrap();
+            let gpu_p: Vec<f32> = ld.iter().map(|x| x[3]).collect();
+            let d_p = max_abs_diff(&gpu_p, &l.p);
+            let count =
+                |pr: &[f32], keep: &dyn Fn(usize) -> bool| (0..pr.len()).filter(|&i| keep(i) && pr[i] < 0.0).count();
+            let raw: Vec<f32> =
+                (0..l.x.len()).map(|i| p.k_l * (l.n_s[i] + l.n_l[i] - 1.0 + p.c1 * l.n_s[i] * l.n_l[i])).collect();
+            let inside = |i: usize| p.liquid_tension_in.iter().any(|r| r.contains(l.x[i]));
+            let above = |i: usize| l.n_s[i] >= limit && !inside(i);
+            let above_in = |i: usize| l.n_s[i] >= limit && inside(i);
+            let below = |i: usize| l.n_s[i] < limit;
+            let (cpu_above, gpu_above, raw_above) = (count(&l.p, &above), count(&gpu_p, &above), count(&raw, &above));
+            let (cpu_in, gpu_in) = (count(&l.p, &above_in), count(&gpu_p, &above_in));
+            let (cpu_below, gpu_below) = (count(&l.p, &below), count(&gpu_p, &below));
+            eprintln!(
+                "tension limit nˢ < {limit}, region {region:?}: p GPU − CPU {d_p:.3e} (max {:.3e}); under tension at \
+                 nˢ ≥ limit outside the region: CPU {cpu_above}, GPU {gpu_above} (unclamped {raw_above}); inside it: \
+                 CPU {cpu_in}, GPU {gpu_in}; below the limit: CPU {cpu_below}, GPU {gpu_below} of {}",
+                max_abs(&l.p),
+                l.x.len()
+            );
+            assert!(d_p <= 1e-6 * p.k_l.max(1.0));
+            assert!(raw_above > 0, "the scene must put liquid at nˢ ≥ {limit} under tension without the limit");
+            assert_eq!((cpu_above, gpu_above), (0, 0), "tension where the liquid sees nˢ ≥ {limit} outside the region");
+            assert!(cpu_below > 0 && gpu_below > 0, "the free liquid keeps its tension");
+            if region.is_some() {
+                assert!(cpu_in > 0 && gpu_in > 0, "the region's liquid at nˢ ≥ {limit} takes tension");
+            } else {
+                assert_eq!((cpu_in, gpu_in), (0, 0));
+            }
+        }
     });
 }
 

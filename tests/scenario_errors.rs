@@ -186,6 +186,21 @@ fn tension_limit_needs_tension_and_a_fraction() {
         &tl("liquid_tension: true, liquid_tension_below_ns: Some(1.5)"),
         &["numerics.liquid_tension_below_ns", "[0, 1]"],
     );
+    let bore = "liquid_tension_in: [Box(min: (0.0, 0.0, 0.0), max: (0.01, 0.01, 0.01))]";
+    expect(&tl(bore), &["numerics.liquid_tension_in", "liquid_tension: true"]);
+    expect(
+        &tl("liquid_tension: true, liquid_tension_in: [Box(min: (0.0, 0.0, 0.02), max: (0.01, 0.01, 0.01))]"),
+        &["numerics.liquid_tension_in[0]", "min ≤ max"],
+    );
+    expect(
+        &tl("liquid_tension: true, liquid_tension_in: [Sphere(centre: (0.0, 0.0, 0.0), radius: -1.0)]"),
+        &["numerics.liquid_tension_in[0].radius"],
+    );
+    let five = ["Sphere(centre: (0.0, 0.0, 0.0), radius: 0.001)"; 5].join(", ");
+    expect(
+        &tl(&format!("liquid_tension: true, liquid_tension_in: [{five}]")),
+        &["numerics.liquid_tension_in", "limit of 4"],
+    );
 }
 
 #[test]
@@ -245,6 +260,15 @@ fn override_errors_are_clear() {
     let ok =
         Scenario::from_str_with_overrides(BASE, "base.ron", &["particles.0.fraction=0.5".into()]).expect("enum path");
     assert!(matches!(ok.particles[0], perfuse::scenario::Generator::Box { fraction, .. } if fraction == 0.5));
+    // A whole enum value loses its variant's name on the way: the error says to set its fields instead.
+    let e = Scenario::from_str_with_overrides(
+        BASE,
+        "base.ron",
+        &["numerics.liquid_tension_in=[Box(min: (0, 0, 0), max: (1, 1, 1))]".into()],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("numerics.liquid_tension_in") && e.contains("set its fields"), "{e}");
 }
 
 #[test]

@@ -10,7 +10,12 @@
 //! tissue, capsule nor perfusing blood remains in it, and no bond crosses it. The syringe is primed:
 //! pure blood (n₀ = 1) fills the bore and the barrel up to the sink, so that the suction disc's low
 //! pressure reaches the tip through the liquid, as in a real syringe drawing blood (SPH transmits no
-//! pressure across empty space: unprimed, the bore's blood just ran out of the tip at 8³).
+//! pressure across empty space: unprimed, the bore's blood just ran out of the tip at 8³). Only the
+//! syringe's blood and the tissue's at the tip carry that tension — the free blood
+//! (`liquid_tension_below_ns` 0.05), the bore's column down to the tip and a sphere of radius
+//! [`TIP_TENSION_RADIUS`] around the tip (`liquid_tension_in`) — while the blood by the capsule keeps
+//! (2.53)'s clamp at 0: with tension everywhere the perfused tissue's blood went into SPH's tensile
+//! instability and burst through the capsule (README: `syringe.ron` under Validation).
 //!
 //! Acceptance (SPEC §7.8): (1) the drawn volume — liquid sunk below the suction disc plus liquid in the
 //! needle's bore and the barrel, less what was there at t = 0 — never falls between 0.05-s bins after
@@ -32,6 +37,9 @@ pub const SYRINGE: &str = include_str!("../../assets/scenarios/syringe.ron");
 pub const L_C: f64 = 0.05;
 /// Suction pressure of the disc [Pa] (SPEC §7.8).
 pub const SUCTION: f64 = -5000.0;
+/// Radius [m] of the tissue around the needle tip whose blood may take tension (`liquid_tension_in`):
+/// L_c/5, 6.7 mm clear of the capsule's top face (L_c/3 above the tip).
+pub const TIP_TENSION_RADIUS: f64 = L_C / 5.0;
 /// Depth of the sink below the disc [Δx_l] (SPEC §7.8: 2).
 pub const SINK_DEPTH: f64 = 0.5;
 
@@ -169,7 +177,19 @@ pub fn scenario_ron(ns: u32, nl: u32, duration: f64) -> String {
     let _ = writeln!(s, "        xsph: Xsph(solid: 0.5, liquid: 0.0),");
     let _ = writeln!(
         s,
-        "        liquid_tension: true, // the suction reaches the tip only through blood under tension (SPEC (2.53) unclamped)"
+        "        // the suction reaches the tip only through blood under tension (SPEC (2.53) unclamped): the syringe's\n\
+         \x20       // free blood (nˢ < 0.05), the bore's column down to the tip and the tissue's blood within L_c/5 of the\n\
+         \x20       // tip, not the blood by the capsule, where tension bursts it out (README: syringe.ron under Validation)"
+    );
+    let _ = writeln!(s, "        liquid_tension: true,");
+    let _ = writeln!(s, "        liquid_tension_below_ns: Some(0.05),");
+    let _ = writeln!(
+        s,
+        "        liquid_tension_in: [Box(min: {}, max: {}), Sphere(centre: {}, radius: {:?})],",
+        v([-g.bore, -g.bore, g.z_tip]),
+        v([g.bore, g.bore, g.z_disc]),
+        v(g.tip()),
+        TIP_TENSION_RADIUS
     );
     let _ = writeln!(s, "        dt_min: 1e-9,");
     let _ = writeln!(s, "        dt_max: 1e-3,");

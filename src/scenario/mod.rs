@@ -15,6 +15,7 @@ pub use generate::{
     cantilever_mode, generate, lattice_points, motion_at,
 };
 pub use schema::*;
+pub use validate::MAX_TENSION_REGIONS;
 
 use std::path::Path;
 
@@ -99,7 +100,17 @@ impl Scenario {
         set_path(&mut tree, field).map(|slot| *slot = value).map_err(|p| {
             err(p, "use a dotted path of the scenario schema (README: Scenario format), e.g. numerics.h_over_dx")
         })?;
-        serde_json::from_value(tree).map_err(|e| err(e.to_string(), "give a value of the field's type"))
+        serde_json::from_value(tree).map_err(|e| {
+            let e = e.to_string();
+            // RON's untyped values drop a variant's name (`Box(min: …)` reads as a plain map)
+            let fix = if e.contains("map with a single key") {
+                "a whole enum value (e.g. Box(...), Sphere(...)) cannot be given with --set: set its fields \
+                 (FIELD.min=(…)) where the file has one, or edit the file"
+            } else {
+                "give a value of the field's type"
+            };
+            err(e, fix)
+        })
     }
 
     /// Number of spatial dimensions as a kernel enum.

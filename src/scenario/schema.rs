@@ -254,6 +254,13 @@ pub struct Numerics {
     /// blood into the tensile instability: README, `syringe.ron`). Absent: everywhere.
     #[serde(default)]
     pub liquid_tension_below_ns: Option<f64>,
+    /// With `liquid_tension`: regions (`Box` or `Sphere`, scenario coordinates; at most
+    /// `MAX_TENSION_REGIONS`) where the pressure may go negative whatever nˢ — the bore of a syringe's
+    /// needle, whose blood sees the tissue around the tip, and the tissue around the tip itself, so that
+    /// the suction reaches the tissue while the blood by the capsule stays clamped. With regions and
+    /// without `liquid_tension_below_ns`, tension acts only in the regions.
+    #[serde(default)]
+    pub liquid_tension_in: Vec<Region>,
     /// Speed [m/s] above which a particle counts as runaway (divergence); default 20·c_max.
     #[serde(default)]
     pub max_speed: Option<f64>,

@@ -259,6 +259,33 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
         }
         Check::range("numerics.liquid_tension_below_ns", v, 0.0, 1.0, "a solid fraction nˢ, e.g. 0.05")?;
     }
+    if !n.liquid_tension_in.is_empty() && !n.liquid_tension {
+        return Err(Check::fail(
+            "numerics.liquid_tension_in",
+            "is set but the liquid sustains no tension (liquid_tension: false), so it would never act",
+            "add liquid_tension: true, or remove liquid_tension_in",
+        ));
+    }
+    if n.liquid_tension_in.len() > MAX_TENSION_REGIONS {
+        return Err(Check::fail(
+            "numerics.liquid_tension_in",
+            format!("{} regions exceed the limit of {MAX_TENSION_REGIONS}", n.liquid_tension_in.len()),
+            "merge regions into fewer boxes or spheres",
+        ));
+    }
+    for (k, r) in n.liquid_tension_in.iter().enumerate() {
+        let f = format!("numerics.liquid_tension_in[{k}]");
+        check_region(&f, r)?;
+        if let Region::Box { min, max } = r
+            && (0..3).any(|a| min[a] > max[a])
+        {
+            return Err(Check::fail(
+                f,
+                format!("the box's min {min:?} exceeds its max {max:?} on some axis, so it holds nothing"),
+                "give min ≤ max on every axis",
+            ));
+        }
+    }
     if let Some(a) = &n.liquid_artificial_pressure {
         if !n.liquid_tension {
             return Err(Check::fail(
@@ -796,6 +823,8 @@ fn check_velocity(f: &str, v: &Option<InitialVelocity>) -> Result<(), Problem> {
     }
 }
 
+/// Most regions of `numerics.liquid_tension_in` (the uniform block's `SimParams::tension`).
+pub const MAX_TENSION_REGIONS: usize = 4;
 /// Most emitters and sinks of a scenario (GPU table sizes, `sim::cpu::emit`).
 pub const MAX_EMITTERS: usize = 8;
 pub const MAX_SINKS: usize = 8;

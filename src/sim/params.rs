@@ -33,9 +33,13 @@ pub struct Params {
     pub cohesion_ll: f32,
     pub cohesion_lb: f32,
     /// Where the liquid pressure may go negative: nˢ below this (`numerics.liquid_tension` and
-    /// `liquid_tension_below_ns`; +∞ for everywhere, 0 without `liquid_tension`, so that
-    /// `n_s < liquid_tension_below_ns` is the whole rule).
+    /// `liquid_tension_below_ns`; +∞ for everywhere, 0 without `liquid_tension` or with only a
+    /// region, so that `n_s < liquid_tension_below_ns` or `x` in a `liquid_tension_in` region is the
+    /// whole rule: [`Params::liquid_may_pull`]).
     pub liquid_tension_below_ns: f32,
+    /// Where else the liquid pressure may go negative, whatever nˢ (`numerics.liquid_tension_in`, in
+    /// simulation coordinates; empty without `liquid_tension`).
+    pub liquid_tension_in: Vec<TensionRegion>,
     /// Hourglass-control coefficient c of `numerics.hourglass` (0: off).
     pub hourglass: f32,
     /// Ligament springs of the tethered solid particles: ω² [1/s²] and 2ζω [1/s] (`ligaments`; 0: none).
@@ -95,6 +99,30 @@ pub struct Params {
     pub solid_dynamic: bool,
     /// Critical stretch λ_c of fracture (None: break beyond 2h_s, the thesis criterion).
     pub critical_stretch: Option<f32>,
+}
+
+/// A region of `numerics.liquid_tension_in` in simulation coordinates: there the liquid pressure (2.53)
+/// may go negative whatever the solid fraction (the bore of a syringe's needle, whose blood sees the
+/// tissue around the tip). One rule for `density_liquid` and density.wgsl (`SimParams::tension_a/b`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TensionRegion {
+    Box { min: Vec3, max: Vec3 },
+    Sphere { centre: Vec3, radius: f32 },
+}
+
+impl TensionRegion {
+    /// Whether `x` lies in the region (boundaries included), with the arithmetic of density.wgsl.
+    pub fn contains(&self, x: Vec3) -> bool {
+        match *self {
+            TensionRegion::Box { min, max } => {
+                x.x >= min.x && x.y >= min.y && x.z >= min.z && x.x <= max.x && x.y <= max.y && x.z <= max.z
+            }
+            TensionRegion::Sphere { centre, radius } => {
+                let d = x - centre;
+                d.x * d.x + d.y * d.y + d.z * d.z <= radius * radius
+            }
+        }
+    }
 }
 
 /// Uniform background grid (cells of edge ≥ the largest search radius).
@@ -220,10 +248,35 @@ impl Params {
             wicking: wicking as f32,
             cohesion_ll: cohesion_ll as f32,
             cohesion_lb: cohesion_lb as f32,
-            liquid_tension_below_ns: if n.liquid_tension {
-                n.liquid_tension_below_ns.map_or(f32::INFINITY, |v| v as f32)
+            // with regions but no limit, the regions alone; with neither, everywhere
+            liquid_tension_below_ns: match (n.liquid_tension, n.liquid_tension_below_ns) {
+                (false, _) => 0.0,
+                (true, Some(v)) => v as f32,
+                (true, None) if !n.liquid_tension_in.is_empty() => 0.0,
+                (true, None) => f32::INFINITY,
+            },
+            liquid_tension_in: if n.liquid_tension {
+                n.liquid_tension_in
+                    .iter()
+                    .map(|r| match r {
+                        crate::scenario::Region::Box { min, max } => {
+                            let (mut a, mut b) = (to_sim(*min), to_sim(*max));
+                            if d == 2 {
+                                (a.z, b.z) = (f32::NEG_INFINITY, f32::INFINITY);
+                            }
+                            TensionRegion::Box { min: a, max: b }
+                        }
+                        crate::scenario::Region::Sphere { centre, radius } => {
+                            let mut c = to_sim(*centre);
+                            if d == 2 {
+                                c.z = 0.0;
+                            }
+                            TensionRegion::Sphere { centre: c, radius: *radius as f32 }
+                        }
+                    })
+                    .collect()
             } else {
-                0.0
+                Vec::new()
             },
             hourglass: n.hourglass.unwrap_or(0.0) as f32,
             tether_omega2: tether_omega.powi(2) as f32,
@@ -279,6 +332,12 @@ impl Params {
             solid_dynamic,
             critical_stretch: s.solid.as_ref().and_then(|m| m.critical_stretch).map(|x| x as f32),
         }
+    }
+
+    /// Whether the liquid pressure (2.53) may go negative for a liquid particle at `x` that sees the
+    /// solid fraction `n_s` (`density_liquid` and its WGSL twin `liquid_may_pull`).
+    pub fn liquid_may_pull(&self, x: Vec3, n_s: f32) -> bool {
+        n_s < self.liquid_tension_below_ns || self.liquid_tension_in.iter().any(|r| r.contains(x))
     }
 
     /// Converts absolute scenario coordinates to simulation coordinates.

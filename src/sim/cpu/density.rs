@@ -2,7 +2,8 @@
 //!
 //! * `density_liquid`: ρˡ by summation over L ∪ B_l (2.46), nˡ = ρ/ρ₀ˡ, nˢ by summation of the solid
 //!   (SPEC D-8), pˡ = k_sat(nˢ + nˡ − 1 + C₁nˢnˡ) (2.53)/(3.5, D-9), clamped at 0 unless
-//!   `liquid_tension` (the liquid sustains no tension; README: deviations from SPEC).
+//!   `liquid_tension` (the liquid sustains no tension; README: deviations from SPEC) and nˢ is below
+//!   `liquid_tension_below_ns` or the particle lies in a `liquid_tension_in` region.
 //! * `density_solid`: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
 //!   nˡ by summation of the liquid (membrane override 1 − nˢ_sat, §3.1.3),
 //!   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52).
@@ -41,8 +42,9 @@ pub fn density_liquid(
             let n_s = sum_s / p.rho0_s;
             let n_l = rho / p.rho0_l;
             let raw = p.k_l * (n_s + n_l - 1.0 + p.c1 * n_s * n_l);
-            // (2.53) clamped at 0 unless the liquid may take tension here (`liquid_tension_below_ns`)
-            let pr = if n_s < p.liquid_tension_below_ns { raw } else { raw.max(0.0) };
+            // (2.53) clamped at 0 unless the liquid may take tension here (`liquid_tension_below_ns`,
+            // `liquid_tension_in`)
+            let pr = if p.liquid_may_pull(xi, n_s) { raw } else { raw.max(0.0) };
             (rho, n_s, pr)
         })
         .collect();

@@ -3,7 +3,8 @@
 //! member offset in [`LAYOUTS`] with naga's layout of the WGSL struct). No `vec3` in storage arrays:
 //! vectors travel as `[f32; 4]` (STYLE §5.4).
 
-use super::super::params::Params;
+use super::super::params::{Params, TensionRegion};
+use crate::scenario::MAX_TENSION_REGIONS;
 use crate::sim::kernels::{Dim, Kernel};
 use bytemuck::{Pod, Zeroable};
 use std::mem::{offset_of, size_of};
@@ -54,6 +55,9 @@ pub struct SimParams {
     pub gravity: [f32; 4],
     pub counts: [u32; 4],
     pub switches: [u32; 4],
+    /// `Params::liquid_tension_in`, two vec4s per region: box (min, 1) (max, 0), sphere (centre, 2)
+    /// (0, 0, 0, r²), unused (0, 0, 0, 0) twice.
+    pub tension: [[f32; 4]; 2 * MAX_TENSION_REGIONS],
     pub rho0_l: f32,
     pub rho0_s: f32,
     pub eta: f32,
@@ -148,6 +152,18 @@ impl SimParams {
                 p.liquid_tension_below_ns.to_bits(),
                 c.objects,
             ],
+            tension: {
+                let mut t = [[0.0; 4]; 2 * MAX_TENSION_REGIONS];
+                for (k, r) in p.liquid_tension_in.iter().take(MAX_TENSION_REGIONS).enumerate() {
+                    (t[2 * k], t[2 * k + 1]) = match *r {
+                        TensionRegion::Box { min, max } => ([min.x, min.y, min.z, 1.0], [max.x, max.y, max.z, 0.0]),
+                        TensionRegion::Sphere { centre, radius } => {
+                            ([centre.x, centre.y, centre.z, 2.0], [0.0, 0.0, 0.0, radius * radius])
+                        }
+                    };
+                }
+                t
+            },
             rho0_l: p.rho0_l,
             rho0_s: p.rho0_s,
             eta: p.eta,
@@ -418,7 +434,9 @@ pub struct GridSet {
 }
 
 const _: () = assert!(size_of::<KernelConsts>() == 32);
-const _: () = assert!(size_of::<SimParams>() == 448);
+const _: () = assert!(size_of::<SimParams>() == 576);
+// common.wgsl's `tension: array<vec4<f32>, 8>` and density.wgsl's loop over 4 regions
+const _: () = assert!(MAX_TENSION_REGIONS == 4);
 const _: () = assert!(size_of::<StepState>() == 48);
 const _: () = assert!(size_of::<ObjectGpu>() == 96);
 const _: () = assert!(size_of::<Mat3Gpu>() == 48);
@@ -448,6 +466,7 @@ pub const LAYOUTS: &[StructLayout] = &[
             ("k_cross", offset_of!(SimParams, k_cross)),
             ("grid_min", offset_of!(SimParams, grid_min)),
             ("switches", offset_of!(SimParams, switches)),
+            ("tension", offset_of!(SimParams, tension)),
             ("rho0_l", offset_of!(SimParams, rho0_l)),
             ("as_exp", offset_of!(SimParams, as_exp)),
             ("fixed_dt", offset_of!(SimParams, fixed_dt)),
