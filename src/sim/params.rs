@@ -103,7 +103,7 @@ pub struct Params {
 
 /// A region of `numerics.liquid_tension_in` in simulation coordinates: there the liquid pressure (2.53)
 /// may go negative whatever the solid fraction (the bore of a syringe's needle, whose blood sees the
-/// tissue around the tip). One rule for `density_liquid` and density.wgsl (`SimParams::tension_a/b`).
+/// tissue around the tip). One rule for `density_liquid` and density.wgsl (`SimParams::tension`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum TensionRegion {
     Box { min: Vec3, max: Vec3 },
