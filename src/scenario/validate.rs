@@ -250,21 +250,11 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
         ));
     }
     if let Some(v) = n.liquid_tension_below_ns {
-        if !n.liquid_tension {
-            return Err(Check::fail(
-                "numerics.liquid_tension_below_ns",
-                "is set but the liquid sustains no tension (liquid_tension: false), so it would never act",
-                "add liquid_tension: true, or remove liquid_tension_below_ns",
-            ));
-        }
+        needs_tension(n, "liquid_tension_below_ns")?;
         Check::range("numerics.liquid_tension_below_ns", v, 0.0, 1.0, "a solid fraction nˢ, e.g. 0.05")?;
     }
-    if !n.liquid_tension_in.is_empty() && !n.liquid_tension {
-        return Err(Check::fail(
-            "numerics.liquid_tension_in",
-            "is set but the liquid sustains no tension (liquid_tension: false), so it would never act",
-            "add liquid_tension: true, or remove liquid_tension_in",
-        ));
+    if !n.liquid_tension_in.is_empty() {
+        needs_tension(n, "liquid_tension_in")?;
     }
     if n.liquid_tension_in.len() > MAX_TENSION_REGIONS {
         return Err(Check::fail(
@@ -287,13 +277,7 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
         }
     }
     if let Some(a) = &n.liquid_artificial_pressure {
-        if !n.liquid_tension {
-            return Err(Check::fail(
-                "numerics.liquid_artificial_pressure",
-                "is set but the liquid sustains no tension (liquid_tension: false), so it would never act",
-                "add liquid_tension: true, or remove liquid_artificial_pressure",
-            ));
-        }
+        needs_tension(n, "liquid_artificial_pressure")?;
         Check::range(
             "numerics.liquid_artificial_pressure.epsilon",
             a.epsilon,
@@ -795,6 +779,18 @@ fn check_ligaments(s: &Scenario, lig: &super::Ligaments) -> Result<(), Problem> 
         ));
     }
     Ok(())
+}
+
+/// A `numerics` field that only acts on a liquid under tension is set without `liquid_tension`.
+fn needs_tension(n: &super::Numerics, field: &str) -> Result<(), Problem> {
+    if n.liquid_tension {
+        return Ok(());
+    }
+    Err(Check::fail(
+        format!("numerics.{field}"),
+        "is set but the liquid sustains no tension (liquid_tension: false), so it would never act",
+        format!("add liquid_tension: true, or remove {field}"),
+    ))
 }
 
 fn check_region(f: &str, r: &Region) -> Result<(), Problem> {
