@@ -169,6 +169,103 @@ fn gpu_emits_and_sinks_like_the_cpu() {
     });
 }
 
+/// The channel with its top wall showing the liquid a prescribed −500 Pa (SPEC §4.1's prescribed mode).
+fn channel_with_suction() -> Scenario {
+    let text = CHANNEL.replace(
+        "max: (0.04, 0.0275, 0.0))),",
+        "max: (0.04, 0.0275, 0.0)), pressure: Prescribed(density: 1000.0, pressure: -500.0)),",
+    );
+    assert_ne!(text, CHANNEL);
+    Scenario::from_str_named(&text, "channel with suction (test)").expect("scenario")
+}
+
+/// Liquid particles past the channel's open end, in the sink's region (x ≥ 0.045 m; the state's
+/// positions are relative to the domain's centre).
+fn in_outlet(sim: &mut Simulation) -> usize {
+    let x0 = (0.045 - sim.params().origin[0]) as f32;
+    sim.read_state().expect("state").liquid.pos.iter().filter(|x| x.x >= x0).count()
+}
+
+/// `Command::SetSuction(false)` (a relaxation with `hold_suction`) holds sinks and prescribed
+/// pressures: the sink removes nothing while the outflow passes into it, and the wall with a
+/// prescribed pressure acts exactly as a mirror wall (the same state, bit for bit). Released, the sink
+/// removes what is in it at the next step and the prescribed pressure acts again.
+#[test]
+fn held_suction_sinks_nothing_and_prescribes_no_pressure() {
+    let mut a = Simulation::new(&channel_with_suction(), BackendKind::Cpu).expect("suction channel");
+    let mut b = Simulation::new(&channel(&[]), BackendKind::Cpu).expect("channel");
+    for s in [&mut a, &mut b] {
+        s.apply(&Command::SetSuction(false)).expect("hold");
+        run_to(s, 0.2);
+    }
+    let (ea, eb) = (a.emit_totals().expect("a"), b.emit_totals().expect("b"));
+    let waiting = in_outlet(&mut a);
+    println!("held to 0.2 s: {} emitted, {} sunk, {waiting} particles in the outlet", ea.emitted, ea.sunk);
+    assert_eq!((ea.sunk, eb.sunk), (0, 0), "a held sink removes nothing");
+    assert!(waiting > 0, "the outflow reached the sink's region");
+    assert_eq!(a.read_state().expect("a").hash(), b.read_state().expect("b").hash(), "held: mirror pressure");
+    for s in [&mut a, &mut b] {
+        s.apply(&Command::SetSuction(true)).expect("release");
+        s.advance(1, f64::INFINITY).expect("one step");
+    }
+    let sunk = a.emit_totals().expect("a").sunk;
+    assert!(sunk as usize >= waiting && in_outlet(&mut a) == 0, "released: {sunk} sunk, {waiting} were waiting");
+    run_to(&mut a, 0.25);
+    run_to(&mut b, 0.25);
+    assert_ne!(a.read_state().expect("a").hash(), b.read_state().expect("b").hash(), "released: −500 Pa acts");
+}
+
+/// A relaxation with `hold_suction` (`syringe.ron`) sinks nothing before t = 0 and releases the
+/// suction at t = 0; without it the sink acts during the relaxation (`liver_bleed.ron`).
+#[test]
+fn relaxation_holds_the_suction_until_t0() {
+    let relaxed = |hold: bool| {
+        let r = format!("relaxation=Some(Relaxation(duration: 0.2, damping: 1.0, hold_suction: {hold}))");
+        let mut sim = Simulation::new(&channel(&[&r]), BackendKind::Cpu).expect("channel");
+        sim.relax(|_| {}).expect("relax");
+        assert_eq!(sim.time(), 0.0);
+        (sim.emit_totals().expect("totals").sunk, in_outlet(&mut sim), sim)
+    };
+    let (sunk_free, _, _) = relaxed(false);
+    let (sunk_held, waiting, mut sim) = relaxed(true);
+    println!("relaxed 0.2 s: {sunk_free} sunk without hold_suction; with it {sunk_held} sunk, {waiting} waiting");
+    assert!(sunk_free > 0, "the sink acts while relaxing without hold_suction");
+    assert!(sunk_held == 0 && waiting > 0, "held: {sunk_held} sunk, {waiting} in the outlet");
+    sim.advance(1, f64::INFINITY).expect("first step after t = 0");
+    assert!(sim.emit_totals().expect("totals").sunk as usize >= waiting, "released at t = 0");
+}
+
+/// The GPU back-end holds and releases the suction as the CPU reference: the same particles, none
+/// sunk while held, the same ones sunk after.
+#[test]
+fn gpu_holds_the_suction_like_the_cpu() {
+    gpu_test("gpu_holds_the_suction_like_the_cpu", |ctx| {
+        let scn = channel_with_suction();
+        let mut cpu = Simulation::new(&scn, BackendKind::Cpu).expect("cpu");
+        let mut gpu = Simulation::with_gpu(&scn, Some(ctx)).expect("gpu");
+        for (t, on) in [(0.2, false), (0.25, true)] {
+            for s in [&mut cpu, &mut gpu] {
+                s.apply(&Command::SetSuction(on)).expect("valve");
+                run_to(s, t);
+            }
+            let (ec, eg) = (cpu.emit_totals().expect("cpu"), gpu.emit_totals().expect("gpu"));
+            assert_eq!((ec.emitted, ec.sunk), (eg.emitted, eg.sunk), "t = {t}");
+            assert_eq!(
+                ec.sunk == 0,
+                !on,
+                "t = {t}: {} sunk with the suction {}",
+                ec.sunk,
+                if on { "on" } else { "held" }
+            );
+            let (sc, sg) = (cpu.read_state().expect("cpu"), gpu.read_state().expect("gpu"));
+            assert_eq!(sc.liquid.id, sg.liquid.id, "same particles, same order");
+            let dmax = sc.liquid.pos.iter().zip(&sg.liquid.pos).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+            println!("t = {t}, suction {on}: {} sunk, max |x_gpu − x_cpu| = {dmax:.3e} m", ec.sunk);
+            assert!(dmax < 5e-2 * 0.0025, "positions differ by {dmax} m");
+        }
+    });
+}
+
 /// A 3-D square duct fed by the patient's hepatic arterial flow (`Flow::Hepatic`, volume scale 4):
 /// over five cardiac cycles the emitted volume equals the model's hepatic inflow integral within 2 %
 /// (issue 7) — here within one particle, the backlog — the vitals stay at baseline (a pipe's inflow

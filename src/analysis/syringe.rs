@@ -148,7 +148,8 @@ pub fn scenario_ron(ns: u32, nl: u32, duration: f64) -> String {
          // and a suction disc at z = L_c + 25 mm whose particles show the liquid a prescribed pressure of −5 kPa\n\
          // (SPEC §4.1's prescribed mode); the sink just below it removes the drawn blood. The syringe is primed:\n\
          // pure blood (fraction 1) fills the bore and the barrel up to the sink, so the suction reaches the tip\n\
-         // through the liquid. Units: SI.\n"
+         // through the liquid; the suction is held while the specimen relaxes\n\
+         // and draws from t = 0. Units: SI.\n"
     );
     let _ = writeln!(s, "Scenario(");
     let _ = writeln!(s, "    name: \"syringe\",");
@@ -253,7 +254,11 @@ pub fn scenario_ron(ns: u32, nl: u32, duration: f64) -> String {
     );
     let _ =
         writeln!(s, "    membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483)),");
-    let _ = writeln!(s, "    relaxation: Some(Relaxation(duration: 0.3, damping: 20.0, gravity_solid_only: true)),");
+    // the primed syringe settles with the specimen, its suction held, and draws from t = 0
+    let _ = writeln!(
+        s,
+        "    relaxation: Some(Relaxation(duration: 0.3, damping: 20.0, gravity_solid_only: true, hold_suction: true)),"
+    );
     let _ = writeln!(s, "    duration: {duration:?},");
     let _ = writeln!(s, "    output: Output(frame_interval: Some(0.05)),");
     let _ = writeln!(s, ")");

@@ -312,9 +312,7 @@ impl Runner {
         // The scenario's damped relaxation runs live, before t = 0 (SPEC §7.5).
         self.relax_end = None;
         if let Some(r) = self.scenario.relaxation.clone().filter(|r| r.duration > 0.0) {
-            let setup = sim.apply(&Command::SetTime(-r.duration)).and_then(|_| {
-                sim.apply(&Command::SetDamping { damping: r.damping, gravity_solid_only: r.gravity_solid_only })
-            });
+            let setup = r.start_commands().iter().try_for_each(|c| sim.apply(c));
             match setup {
                 Ok(()) => self.relax_end = Some(0.0),
                 Err(e) => status.error = Some(e.to_string()),
@@ -699,9 +697,8 @@ impl Runner {
         if let Some(t_end) = *relax_end
             && rs.sim.time() >= t_end
         {
-            let r = rs
-                .apply(&Command::SetDamping { damping: 0.0, gravity_solid_only: false })
-                .and_then(|_| rs.apply(&Command::SetTime(0.0)));
+            let hold = rs.sim.scenario().relaxation.as_ref().is_some_and(|r| r.hold_suction);
+            let r = crate::scenario::Relaxation::end(hold).iter().try_for_each(|c| rs.apply(c));
             if let Err(e) = r {
                 lock(&shared.status).error = Some(e.to_string());
             }

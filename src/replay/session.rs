@@ -193,11 +193,14 @@ impl RecordedSimulation {
         if r.duration <= 0.0 {
             return Ok(());
         }
-        self.apply(&Command::SetTime(-r.duration))?;
-        self.apply(&Command::SetDamping { damping: r.damping, gravity_solid_only: r.gravity_solid_only })?;
+        for c in r.start_commands() {
+            self.apply(&c)?;
+        }
         self.sim.advance_until(0.0, u64::MAX, |_| {})?;
-        self.apply(&Command::SetDamping { damping: 0.0, gravity_solid_only: false })?;
-        self.apply(&Command::SetTime(0.0))
+        for c in r.end_commands() {
+            self.apply(&c)?;
+        }
+        Ok(())
     }
 
     /// Records the current state hash (a readback).

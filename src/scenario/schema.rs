@@ -670,6 +670,44 @@ pub struct Relaxation {
     /// Gravity on the solid only (the liquid rides along through pressure and friction).
     #[serde(default)]
     pub gravity_solid_only: bool,
+    /// Hold the suction until t = 0: while relaxing, boundaries with a `Prescribed` pressure show
+    /// the mirror pressure instead and sinks remove nothing (`Command::SetSuction(false)`), so that a
+    /// primed syringe settles with its specimen and starts drawing at t = 0. Default false: sinks and
+    /// prescribed pressures act during the relaxation too (a perfused organ settles perfused).
+    #[serde(default)]
+    pub hold_suction: bool,
+}
+
+impl Relaxation {
+    /// The commands that start the relaxation (the clock at −duration, the damping on, the suction
+    /// held if asked), in order: one list for the library, the viewer and the recorder.
+    pub fn start_commands(&self) -> Vec<crate::sim::Command> {
+        use crate::sim::Command;
+        let mut c = vec![
+            Command::SetTime(-self.duration),
+            Command::SetDamping { damping: self.damping, gravity_solid_only: self.gravity_solid_only },
+        ];
+        if self.hold_suction {
+            c.push(Command::SetSuction(false));
+        }
+        c
+    }
+
+    /// The commands that end it: the damping off, the suction released, the clock at t = 0.
+    pub fn end_commands(&self) -> Vec<crate::sim::Command> {
+        Relaxation::end(self.hold_suction)
+    }
+
+    /// [`Relaxation::end_commands`] of a relaxation that held the suction or not.
+    pub fn end(hold_suction: bool) -> Vec<crate::sim::Command> {
+        use crate::sim::Command;
+        let mut c = vec![Command::SetDamping { damping: 0.0, gravity_solid_only: false }];
+        if hold_suction {
+            c.push(Command::SetSuction(true));
+        }
+        c.push(Command::SetTime(0.0));
+        c
+    }
 }
 
 /// Quantity averaged by a probe.

@@ -83,6 +83,11 @@ pub enum Command {
     SetDamping { damping: f64, gravity_solid_only: bool },
     /// Set the simulation clock [s] (boundary motions are evaluated at max(t, 0)).
     SetTime(f64),
+    /// The suction's valve: `true` (the start state) lets boundaries with a `Prescribed` pressure
+    /// show it (SPEC §4.1) and sinks remove the liquid in them; `false` holds both — the prescribed
+    /// boundaries show the mirror pressure and the sinks remove nothing (a relaxation with
+    /// `hold_suction`).
+    SetSuction(bool),
     /// Teleport object `object` so that its centre (box centre, sphere centre) is at `position`
     /// (scenario coordinates [m]) and hold it there (parking a tool, loading a projectile).
     PlaceObject { object: usize, position: V3 },
@@ -430,11 +435,13 @@ impl Simulation {
         if r.duration <= 0.0 {
             return Ok(());
         }
-        self.apply(&Command::SetTime(-r.duration))?;
-        self.apply(&Command::SetDamping { damping: r.damping, gravity_solid_only: r.gravity_solid_only })?;
+        for c in r.start_commands() {
+            self.apply(&c)?;
+        }
         self.advance_until(0.0, u64::MAX, &mut progress)?;
-        self.apply(&Command::SetDamping { damping: 0.0, gravity_solid_only: false })?;
-        self.apply(&Command::SetTime(0.0))?;
+        for c in r.end_commands() {
+            self.apply(&c)?;
+        }
         Ok(())
     }
 

@@ -195,8 +195,10 @@ impl EmitState {
         !self.emitters.is_empty() || !self.sinks.is_empty()
     }
 
-    fn in_sink(&self, x: Vec3, three_d: bool) -> bool {
-        self.sinks.iter().any(|g| in_region(g, x, three_d))
+    /// Inside a sink that acts: none while the suction is held (`held`; the GPU then has
+    /// `n_sinks` = 0).
+    fn in_sink(&self, x: Vec3, three_d: bool, held: bool) -> bool {
+        !held && self.sinks.iter().any(|g| in_region(g, x, three_d))
     }
 }
 
@@ -238,7 +240,7 @@ fn emit_mark(p: &Params, st: &CpuState, three_d: bool) -> Vec<bool> {
         return blocked;
     }
     for &x in &st.liquid.x {
-        if e.in_sink(x, three_d) {
+        if e.in_sink(x, three_d, st.suction_held) {
             continue;
         }
         for (s, b) in slots.iter().zip(blocked.iter_mut()) {
@@ -257,10 +259,10 @@ fn emit_mark(p: &Params, st: &CpuState, three_d: bool) -> Vec<bool> {
 
 /// emit_compact: removes the liquid inside sinks, keeping the order of the rest.
 fn emit_compact(st: &mut CpuState, three_d: bool) {
-    if st.emit.sinks.is_empty() {
+    if st.emit.sinks.is_empty() || st.suction_held {
         return;
     }
-    let keep: Vec<bool> = st.liquid.x.iter().map(|&x| !st.emit.in_sink(x, three_d)).collect();
+    let keep: Vec<bool> = st.liquid.x.iter().map(|&x| !st.emit.in_sink(x, three_d, false)).collect();
     let removed = keep.iter().filter(|k| !**k).count();
     if removed == 0 {
         return;

@@ -119,6 +119,17 @@ impl ObjectContact {
     pub const MIRROR: ObjectContact = ObjectContact { density: -1.0, pressure: 0.0, friction: -1.0 };
 }
 
+/// The objects' contact modes in effect: as the scenario gives them, or — the suction held
+/// (`Command::SetSuction(false)`) — with every prescribed pressure shown as the mirror's (its
+/// friction kept). Both back-ends take their pressure modes from here.
+pub fn contacts_in_effect(contacts: &[ObjectContact], suction_held: bool) -> std::borrow::Cow<'_, [ObjectContact]> {
+    if !suction_held || contacts.iter().all(|c| c.density < 0.0) {
+        return std::borrow::Cow::Borrowed(contacts);
+    }
+    let mirror = |c: &ObjectContact| ObjectContact { density: -1.0, pressure: 0.0, friction: c.friction };
+    std::borrow::Cow::Owned(contacts.iter().map(mirror).collect())
+}
+
 /// Cell lists of the three sets.
 #[derive(Clone, Debug, Default)]
 pub struct Grids {
@@ -154,6 +165,9 @@ pub struct CpuState {
     pub gravity: Vec3,
     pub damping: f32,
     pub damping_solid_gravity_only: bool,
+    /// The suction is held (`Command::SetSuction(false)`): prescribed pressures show the mirror's
+    /// and sinks remove nothing.
+    pub suction_held: bool,
     /// Emitters and sinks with their volume accounts (`emit`).
     pub emit: emit::EmitState,
 }
@@ -438,11 +452,12 @@ impl CpuSolver {
             solid: self.neighbours(Set::Solid),
             boundary: self.neighbours(Set::Boundary),
         };
+        let contacts = contacts_in_effect(&self.contacts, self.st.suction_held);
         let ctx = forces::ForceCtx {
             p,
             geoms: &self.geoms,
             gravity: self.st.gravity,
-            contacts: &self.contacts,
+            contacts: &contacts,
             gravity_liquid: !(self.st.damping > 0.0 && self.st.damping_solid_gravity_only),
         };
         let a_l = forces::forces_liquid(&ctx, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb);
@@ -672,6 +687,7 @@ impl CpuSolver {
                 self.move_boundaries(*t);
                 self.build_grids();
             }
+            Command::SetSuction(on) => self.st.suction_held = !on,
             Command::SetInflow { emitter, times, rates } => {
                 let table = crate::sim::inflow_table(times, rates)?;
                 let em = self

@@ -38,7 +38,7 @@ pub mod passes;
 pub mod shaders;
 
 use super::cpu::forces::ObjectGeom;
-use super::cpu::{CpuSolver, ObjectContact};
+use super::cpu::{CpuSolver, ObjectContact, contacts_in_effect};
 use super::params::Params;
 use super::state::{BoundaryState, PhaseState, SolidExtra, State};
 use super::{Command, DtLimit, SimError, StepInfo};
@@ -104,6 +104,10 @@ pub struct GpuSolver {
     gravity: Vec3,
     damping: f32,
     damping_solid_gravity_only: bool,
+    /// `Command::SetSuction(false)` holds: prescribed pressures show the mirror's, `n_sinks` = 0.
+    suction_held: bool,
+    /// Sinks of the scenario (`n_sinks` when the suction acts).
+    sink_count: u32,
     solid_flags: Vec<u32>,
     bond_count0: Vec<u32>,
     /// The scenario has emitters or sinks: the liquid count changes on the GPU (emit.wgsl).
@@ -134,6 +138,7 @@ pub struct GpuSnapshot {
     gravity: Vec3,
     damping: f32,
     damping_solid_gravity_only: bool,
+    suction_held: bool,
     emitted: u64,
     sunk: u64,
     capacity_hit: bool,
@@ -304,7 +309,8 @@ impl GpuSolver {
         let sp = SimParams::new(&params, counts, st.gravity, st.damping, gravity_liquid);
         solver_init.push((Slot::Params, bytes(&[sp])));
         solver_init.push((Slot::Step, bytes(&[StepState::default()])));
-        let objects = objects_at(&params, &st.objects, &shapes, &cpu.contacts, &cpu.beds.offsets, st.t);
+        let modes = contacts_in_effect(&cpu.contacts, st.suction_held);
+        let objects = objects_at(&params, &st.objects, &shapes, &modes, &cpu.beds.offsets, st.t);
         solver_init.push((Slot::Objects, bytes(&objects)));
         let wg_template = [
             capacity.div_ceil(passes::WORKGROUP),
@@ -321,10 +327,8 @@ impl GpuSolver {
         (batch0.t_hi, batch0.t_lo, batch0.wg) = (clock[0], clock[1], wg_template);
         (batch0.n_liquid, batch0.emitted, batch0.sunk) = (counts.liquid, st.emit.emitted as u32, st.emit.sunk as u32);
         solver_init.push((Slot::Batch, bytes(&[batch0])));
-        solver_init.push((
-            Slot::Motions,
-            bytes(&motion_table(&params, &st.objects, &shapes, &cpu.contacts, &cpu.beds.offsets)),
-        ));
+        solver_init
+            .push((Slot::Motions, bytes(&motion_table(&params, &st.objects, &shapes, &modes, &cpu.beds.offsets))));
         solver_init.push((Slot::BedTable, bytes(&cpu.beds.gpu_words())));
         solver_init.push((Slot::IndirectArgs, vec![0u8; 4 * 18]));
         for (slot, n) in [
@@ -375,6 +379,8 @@ impl GpuSolver {
             gravity: st.gravity,
             damping: st.damping,
             damping_solid_gravity_only: st.damping_solid_gravity_only,
+            suction_held: st.suction_held,
+            sink_count: st.emit.sinks.len().min(gpu_types::MAX_SINKS) as u32,
             solid_flags: st.solid.flags.clone(),
             bond_count0: st.solid.bond_count0.clone(),
             emit_active,
@@ -461,7 +467,7 @@ impl GpuSolver {
                 gpu_types::SinkGpu { a: v4(g.a, 0.0), b: v4(g.b, 0.0), kind: g.kind, ..Default::default() };
         }
         state.n_emitters = e.emitters.len().min(gpu_types::MAX_EMITTERS) as u32;
-        state.n_sinks = e.sinks.len().min(gpu_types::MAX_SINKS) as u32;
+        state.n_sinks = if cpu.st.suction_held { 0 } else { e.sinks.len().min(gpu_types::MAX_SINKS) as u32 };
         state.n_slots = slots.len() as u32;
         state.capacity = e.capacity.max(cpu.st.liquid.x.len()) as u32;
         state.id_base = e.id_base;
@@ -590,7 +596,8 @@ impl GpuSolver {
     }
 
     fn upload_objects(&self, t: f64) -> Result<(), GpuError> {
-        let objs = objects_at(&self.params, &self.objects, &self.shapes, &self.contacts, &self.beds.offsets, t);
+        let modes = contacts_in_effect(&self.contacts, self.suction_held);
+        let objs = objects_at(&self.params, &self.objects, &self.shapes, &modes, &self.beds.offsets, t);
         if !objs.is_empty() {
             self.ctx.queue.write_buffer(self.buffer(Slot::Objects)?, 0, bytemuck::cast_slice(&objs));
         }
@@ -598,7 +605,8 @@ impl GpuSolver {
     }
 
     fn upload_motions(&self) -> Result<(), GpuError> {
-        let m = motion_table(&self.params, &self.objects, &self.shapes, &self.contacts, &self.beds.offsets);
+        let modes = contacts_in_effect(&self.contacts, self.suction_held);
+        let m = motion_table(&self.params, &self.objects, &self.shapes, &modes, &self.beds.offsets);
         if !m.is_empty() {
             self.ctx.queue.write_buffer(self.buffer(Slot::Motions)?, 0, bytemuck::cast_slice(&m));
         }
@@ -1018,6 +1026,7 @@ impl GpuSolver {
             gravity: self.gravity,
             damping: self.damping,
             damping_solid_gravity_only: self.damping_solid_gravity_only,
+            suction_held: self.suction_held,
             emitted: self.emitted,
             sunk: self.sunk,
             capacity_hit: self.capacity_hit,
@@ -1056,6 +1065,7 @@ impl GpuSolver {
         self.gravity = snap.gravity;
         self.damping = snap.damping;
         self.damping_solid_gravity_only = snap.damping_solid_gravity_only;
+        self.suction_held = snap.suction_held;
         (self.emitted, self.sunk, self.capacity_hit) = (snap.emitted, snap.sunk, snap.capacity_hit);
         self.upload_clock(snap.clock)?;
         self.upload_params()?;
@@ -1207,6 +1217,16 @@ impl GpuSolver {
                 self.upload_clock(split_pair(*t))?;
                 self.upload_objects(*t)?;
                 self.run_stages(passes::PLACE_AND_BIN)?;
+            }
+            Command::SetSuction(on) => {
+                self.suction_held = !on;
+                self.upload_objects(self.t)?;
+                self.upload_motions()?;
+                if let Some(b) = self.buffers.get(Slot::EmitState, None) {
+                    let n = if *on { self.sink_count } else { 0 };
+                    let off = std::mem::offset_of!(gpu_types::EmitStateGpu, n_sinks) as u64;
+                    self.ctx.queue.write_buffer(b, off, bytemuck::bytes_of(&n));
+                }
             }
             Command::SetInflow { emitter, times, rates } => {
                 let table = crate::sim::inflow_table(times, rates)?;
