@@ -303,13 +303,12 @@ fn leaked_at(g: &Geometry, s: &State, i: usize, x: [f64; 3], reach: f64) -> bool
 /// tissue, and the leaked particles' mean position and height range (world, mm) — below the specimen's
 /// top (oozing through the capsule) or above it (along the needle's shaft or out of the barrel).
 fn log_leak(name: &str, g: &Geometry, p: &crate::sim::params::Params, s: &State, reach: f64) {
-    let primed_mass = 0.7 * f64::from(p.rho0_l) * f64::from(p.dx_liquid).powi(3);
     let (mut n, mut primed, mut sum, mut z_lo, mut z_hi) = (0usize, 0usize, [0.0f64; 3], f64::INFINITY, f64::MIN);
     for i in 0..s.liquid.len() {
         let x = p.to_world(s.liquid.pos[i]);
         if leaked_at(g, s, i, x, reach) {
             n += 1;
-            primed += usize::from(f64::from(s.liquid.mass[i]) >= primed_mass);
+            primed += usize::from(is_primed(p, s, i));
             (0..3).for_each(|a| sum[a] += x[a]);
             z_lo = z_lo.min(x[2]);
             z_hi = z_hi.max(x[2]);
@@ -327,6 +326,33 @@ fn log_leak(name: &str, g: &Geometry, p: &crate::sim::params::Params, s: &State,
             z_hi * 1e3
         );
     }
+}
+
+/// Liquid particle `i` is primed blood from the syringe (fraction 1: a mass of at least 0.7ρ₀Δx_l³;
+/// the tissue's perfusing blood carries its fraction 0.4).
+fn is_primed(p: &crate::sim::params::Params, s: &State, i: usize) -> bool {
+    f64::from(s.liquid.mass[i]) >= 0.7 * f64::from(p.rho0_l) * f64::from(p.dx_liquid).powi(3)
+}
+
+/// What is in the syringe (a diagnostic log line): primed and perfusing particles in the bore (below
+/// the barrel's floor) and in the barrel, and the particles sunk so far: where a change of the drawn
+/// volume comes from (one primed particle across the tip's plane is Δx_l³ of it).
+fn log_syringe(name: &str, g: &Geometry, p: &crate::sim::params::Params, sim: &crate::sim::Simulation, s: &State) {
+    let mut n = [[0usize; 2]; 2];
+    for i in 0..s.liquid.len() {
+        let x = p.to_world(s.liquid.pos[i]);
+        if g.inside(x) {
+            n[usize::from(x[2] >= g.z_bottom)][usize::from(!is_primed(p, s, i))] += 1;
+        }
+    }
+    let sunk = sim.emit_totals().map_or(0, |e| e.sunk);
+    log::info!(
+        "{name}: bore {} primed + {} perfusing, barrel {} primed + {} perfusing, {sunk} sunk",
+        n[0][0],
+        n[0][1],
+        n[1][0],
+        n[1][1]
+    );
 }
 
 /// Volume of the liquid outside the syringe: the specimen's blood, and any that left it elsewhere.
@@ -387,6 +413,7 @@ pub fn run(
         out.leaked_max = out.leaked_max.max(leaked / out.liquid_volume.max(f64::MIN_POSITIVE));
         log::info!("{}: t = {t:.3} s, drawn {drawn:.3e} m³, leaked {leaked:.2e} m³", sc.name);
         log_leak(&sc.name, g, &p, &s, reach);
+        log_syringe(&sc.name, g, &p, &sim, &s);
         k += 1;
     }
     if let Some(f) = &mut frames {
