@@ -195,10 +195,8 @@ impl EmitState {
         !self.emitters.is_empty() || !self.sinks.is_empty()
     }
 
-    /// Inside a sink that acts: none while the suction is held (`held`; the GPU then has
-    /// `n_sinks` = 0).
-    fn in_sink(&self, x: Vec3, three_d: bool, held: bool) -> bool {
-        !held && self.sinks.iter().any(|g| in_region(g, x, three_d))
+    fn in_sink(&self, x: Vec3, three_d: bool) -> bool {
+        self.sinks.iter().any(|g| in_region(g, x, three_d))
     }
 }
 
@@ -240,7 +238,8 @@ fn emit_mark(p: &Params, st: &CpuState, three_d: bool) -> Vec<bool> {
         return blocked;
     }
     for &x in &st.liquid.x {
-        if e.in_sink(x, three_d, st.suction_held) {
+        // a held suction has no sinks (the GPU's n_sinks = 0)
+        if !st.suction_held && e.in_sink(x, three_d) {
             continue;
         }
         for (s, b) in slots.iter().zip(blocked.iter_mut()) {
@@ -262,7 +261,7 @@ fn emit_compact(st: &mut CpuState, three_d: bool) {
     if st.emit.sinks.is_empty() || st.suction_held {
         return;
     }
-    let keep: Vec<bool> = st.liquid.x.iter().map(|&x| !st.emit.in_sink(x, three_d, false)).collect();
+    let keep: Vec<bool> = st.liquid.x.iter().map(|&x| !st.emit.in_sink(x, three_d)).collect();
     let removed = keep.iter().filter(|k| !**k).count();
     if removed == 0 {
         return;
