@@ -303,3 +303,48 @@ fn bench_measures_the_cost_of_recording() {
     assert!(stdout.contains("keyframe MB") && stdout.contains("overhead %"), "{stdout}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The block scene with everything a keyframe can hold: a membrane, an inlet and a sink, a held
+/// suction, besides the tissue's bonds, the blood, the floor and the moving tool.
+fn keyframe_block() -> perfuse::scenario::Scenario {
+    let text = common::scenes::PERFUSED_BLOCK_3D.replace(
+        "    duration: 0.01,",
+        r#"    membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483)),
+    emitters: [ Emitter(name: "inlet", region: Box(min: (0.0005, 0.0005, 0.0045), max: (0.0015, 0.0015, 0.0055)),
+        direction: (0.0, 0.0, -1.0), flow: Constant(1e-9)) ],
+    sinks: [ Sink(name: "drain", region: Box(min: (0.0, 0.0, 0.0015), max: (0.0005, 0.006, 0.002))) ],
+    duration: 0.01,"#,
+    );
+    assert_ne!(text, common::scenes::PERFUSED_BLOCK_3D, "the features were added");
+    perfuse::scenario::Scenario::from_str_named(&text, "keyframe_block.ron").expect("valid")
+}
+
+/// Keyframes (and the replay files that carry them) are postcard, which writes no field names: a
+/// field added to the state decodes an old keyframe into garbage unless `SNAPSHOT_LAYOUT` moves, so
+/// that the old file is refused by number. The shape of a keyframe (its types, field names and
+/// variants, not its values; the GPU's buffers by their sizes) is pinned here to the layout number on
+/// both back-ends: a change of `CpuState`, `GpuSnapshot` or the records of a state buffer fails this
+/// test until the layout is bumped and the new fingerprints are written below. (A change of the test
+/// scene's particle counts moves the GPU fingerprint alone; then only the fingerprint is rewritten.)
+#[test]
+fn keyframe_shape_is_pinned_to_the_snapshot_layout() {
+    use common::shape::{fnv1a, shape_of};
+    use perfuse::sim::snapshot::SNAPSHOT_LAYOUT;
+    let shape = |backend: BackendKind| {
+        let mut sim = Simulation::new(&keyframe_block(), backend).expect("sim");
+        sim.apply(&Command::SetSuction(false)).expect("hold the suction");
+        sim.advance(3, f64::INFINITY).expect("advance");
+        let snap = sim.snapshot().expect("snapshot");
+        shape_of(&snap)
+    };
+    let cpu = shape(BackendKind::Cpu);
+    eprintln!("CPU keyframe shape ({} chars): {cpu}", cpu.len());
+    let bump = "the keyframe's encoding changed: bump SNAPSHOT_LAYOUT (src/sim/snapshot.rs, with a line on what \
+                changed) and write the new layout and fingerprint here";
+    assert_eq!((SNAPSHOT_LAYOUT, fnv1a(&cpu)), (3, 9_404_710_416_063_734_105), "{bump}");
+    gpu_test("keyframe_shape_is_pinned_to_the_snapshot_layout", |_ctx| {
+        let gpu = shape(BackendKind::Gpu);
+        eprintln!("GPU keyframe shape ({} chars): {gpu}", gpu.len());
+        assert_eq!((SNAPSHOT_LAYOUT, fnv1a(&gpu)), (3, 4_731_868_763_990_834_801), "{bump}");
+    });
+}
