@@ -466,6 +466,154 @@ fn nearest_face(o: ObjectGpu, x: vec3<f32>, dims: i32) -> BoxFace {
     return face;
 }
 
+// A box holding y on the side n points to (cpu::forces::box_covering): its index, or -1.
+fn box_covering(y: vec3<f32>, n: vec3<f32>, dims: i32) -> i32 {
+    for (var j = 0u; j < params.switches.w; j++) {
+        let o = objects[j];
+        if (o.kind != 0u) {
+            continue;
+        }
+        var holds = true;
+        for (var a = 0; a < dims; a++) {
+            var ok: bool;
+            if (n[a] < 0.0) {
+                ok = y[a] > o.geom_a[a] && y[a] <= o.geom_b[a];
+            } else if (n[a] > 0.0) {
+                ok = y[a] >= o.geom_a[a] && y[a] < o.geom_b[a];
+            } else {
+                ok = y[a] >= o.geom_a[a] && y[a] <= o.geom_b[a];
+            }
+            if (!ok) {
+                holds = false;
+            }
+        }
+        if (holds) {
+            return i32(j);
+        }
+    }
+    return -1;
+}
+
+struct BoxExit {
+    d: f32,
+    found: bool,
+    y: vec3<f32>,
+    n: vec3<f32>,
+}
+
+// y (normals n) moved onto face s (0 low, 1 high) of box c on axis b, with its distance from x.
+fn face_move(c: ObjectGpu, b: i32, s: i32, x: vec3<f32>, y: vec3<f32>, n: vec3<f32>) -> BoxExit {
+    var y2 = y;
+    var n2 = n;
+    if (s == 0) {
+        y2[b] = c.geom_a[b];
+        n2[b] = -1.0;
+    } else {
+        y2[b] = c.geom_b[b];
+        n2[b] = 1.0;
+    }
+    return BoxExit(len3(y2 - x), false, y2, n2);
+}
+
+// box_exit's last level (cpu::forces::exit_via with levels = 1): y (normals n) is covered by box j;
+// y moved onto each face of j on an unused axis, the nearest uncovered result kept.
+fn exit_via_last(j: u32, x: vec3<f32>, y: vec3<f32>, n: vec3<f32>, dims: i32, best_in: BoxExit) -> BoxExit {
+    var best = best_in;
+    let c = objects[j];
+    for (var b = 0; b < dims; b++) {
+        if (n[b] != 0.0) {
+            continue;
+        }
+        for (var s = 0; s < 2; s++) {
+            let m = face_move(c, b, s, x, y, n);
+            let y2 = m.y;
+            let n2 = m.n;
+            let d = m.d;
+            if (d >= best.d) {
+                continue;
+            }
+            if (box_covering(y2, n2, dims) < 0) {
+                best = BoxExit(d, true, y2, n2);
+            }
+        }
+    }
+    return best;
+}
+
+// box_exit's middle level (exit_via with levels = 2): as exit_via_last, a covered result going on to
+// exit_via_last.
+fn exit_via(j: u32, x: vec3<f32>, y: vec3<f32>, n: vec3<f32>, dims: i32, best_in: BoxExit) -> BoxExit {
+    var best = best_in;
+    let c = objects[j];
+    for (var b = 0; b < dims; b++) {
+        if (n[b] != 0.0) {
+            continue;
+        }
+        for (var s = 0; s < 2; s++) {
+            let m = face_move(c, b, s, x, y, n);
+            let y2 = m.y;
+            let n2 = m.n;
+            let d = m.d;
+            if (d >= best.d) {
+                continue;
+            }
+            let j2 = box_covering(y2, n2, dims);
+            if (j2 < 0) {
+                best = BoxExit(d, true, y2, n2);
+            } else {
+                best = exit_via_last(u32(j2), x, y2, n2, dims, best);
+            }
+        }
+    }
+    return best;
+}
+
+// Where a point x strictly inside box objects[k] is put back out (cpu::forces::box_exit): the nearest
+// uncovered point among box k's faces and, where another box covers a face at the landing point, the
+// landing point moved onto the covering box's faces on other axes (twice at most); else the nearest face.
+fn box_exit(k: u32, x: vec3<f32>, dims: i32) -> BoxExit {
+    let g = objects[k];
+    var best = BoxExit(3.0e38, false, x, vec3<f32>(0.0));
+    for (var a = 0; a < dims; a++) {
+        for (var s = 0; s < 2; s++) {
+            var side = -1.0;
+            var face = g.geom_a[a];
+            var d = x[a] - g.geom_a[a];
+            if (s == 1) {
+                side = 1.0;
+                face = g.geom_b[a];
+                d = g.geom_b[a] - x[a];
+            }
+            if (d >= best.d) {
+                continue;
+            }
+            var y = x;
+            y[a] = face;
+            var n = vec3<f32>(0.0);
+            n[a] = side;
+            let j = box_covering(y, n, dims);
+            if (j < 0) {
+                best = BoxExit(d, true, y, n);
+            } else {
+                best = exit_via(u32(j), x, y, n, dims, best);
+            }
+        }
+    }
+    if (!best.found) {
+        let f = nearest_face(g, x, dims);
+        var y = x;
+        var n = vec3<f32>(0.0);
+        if (f.side < 0.0) {
+            y[f.axis] = g.geom_a[f.axis];
+        } else {
+            y[f.axis] = g.geom_b[f.axis];
+        }
+        n[f.axis] = f.side;
+        best = BoxExit(0.0, true, y, n);
+    }
+    return best;
+}
+
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return (a.x * b.x) + (a.y * b.y) + (a.z * b.z);
 }

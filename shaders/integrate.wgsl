@@ -160,7 +160,7 @@ fn bed_contact(off: u32, x: vec3<f32>, three_d: bool) -> BedHit {
 }
 
 // Contact with the rigid boundary objects at tⁿ⁺¹ (twin: cpu::integrate::object_contact): a particle
-// inside an object's shape goes back onto the nearest face (box) or the sphere, and the inward part of
+// inside an object's shape goes back onto the boxes' surface (box_exit) or the sphere, and the inward part of
 // its velocity relative to the object is removed; a moulded bed (kind 2 with a heightfield) uses
 // bed_contact. Returns the new position (xyz) and velocity.
 struct Contact {
@@ -188,15 +188,16 @@ fn object_contact(x_in: vec3<f32>, v_in: vec3<f32>) -> Contact {
                 }
             }
             if (inside) {
-                let face = nearest_face(o, x, dims);
-                let axis = face.axis;
-                let side = face.side;
-                if (side < 0.0) {
-                    x[axis] = o.geom_a[axis];
-                } else {
-                    x[axis] = o.geom_b[axis];
+                let e = box_exit(k, x, dims);
+                x = e.y;
+                // the inward part along each face's normal (one, or two at a corner of two boxes)
+                for (var a = 0; a < 3; a++) {
+                    let vn = (v[a] - o.vel[a]) * e.n[a];
+                    if (vn < 0.0) {
+                        v[a] = v[a] - e.n[a] * vn;
+                    }
                 }
-                n[axis] = side;
+                continue;
             }
         } else if (o.kind == 1u) {
             let d = x - o.geom_a.xyz;

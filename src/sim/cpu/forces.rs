@@ -117,6 +117,97 @@ pub fn nearest_face(g: &ObjectGeom, x: Vec3, dims: usize) -> (usize, f32) {
     (axis, side)
 }
 
+/// A box (kind 0) that holds `y` on the side `n` points to: closed on the axes where n is 0, and
+/// just past y where it is not (the box covers the ground a particle put on y would stand on). Twin
+/// of `box_covering` in `shaders/common.wgsl`.
+pub fn box_covering(geoms: &[ObjectGeom], y: Vec3, n: Vec3, dims: usize) -> Option<usize> {
+    geoms.iter().position(|o| {
+        o.kind == 0
+            && (0..dims).all(|a| {
+                if n[a] < 0.0 {
+                    y[a] > o.a[a] && y[a] <= o.b[a]
+                } else if n[a] > 0.0 {
+                    y[a] >= o.a[a] && y[a] < o.b[a]
+                } else {
+                    y[a] >= o.a[a] && y[a] <= o.b[a]
+                }
+            })
+    })
+}
+
+/// Where a point x strictly inside box `geoms[k]` is put back out (`object_contact`): the nearest
+/// point on the surface of the union of the boxes among these candidates — each face of box k, and,
+/// where another box covers that face at x's landing point (a vessel's side wall standing on its
+/// floor), that landing point moved onto a face of the covering box on another axis, and so on once
+/// more (the corner where two walls meet the floor). A candidate counts when no box covers it. Returns
+/// the point and the outward normals used (±1 on one axis, or on two or three at a corner). With one
+/// box, or no box at a face, this is the nearest face ([`nearest_face`], same ties); when every
+/// candidate is covered, the nearest face too. The nearest face alone could be the plane a wall shares
+/// with its floor: a particle that entered the wall's foot went onto that seam and slid out of the
+/// vessel along it (`docs/sealed_column.ron`). Twin of `box_exit` in `shaders/common.wgsl`, in the same
+/// f32 operations and order.
+pub fn box_exit(geoms: &[ObjectGeom], k: usize, x: Vec3, dims: usize) -> (Vec3, Vec3) {
+    let g = &geoms[k];
+    let mut best = (f32::INFINITY, None);
+    for a in 0..dims {
+        for side in [-1.0f32, 1.0] {
+            let (face, d) = if side < 0.0 { (g.a[a], x[a] - g.a[a]) } else { (g.b[a], g.b[a] - x[a]) };
+            if d >= best.0 {
+                continue;
+            }
+            let mut y = x;
+            y[a] = face;
+            let mut n = Vec3::ZERO;
+            n[a] = side;
+            match box_covering(geoms, y, n, dims) {
+                None => best = (d, Some((y, n))),
+                Some(j) => exit_via(geoms, j, x, y, n, dims, 2, &mut best),
+            }
+        }
+    }
+    best.1.unwrap_or_else(|| {
+        let (axis, side) = nearest_face(g, x, dims);
+        let mut y = x;
+        y[axis] = if side < 0.0 { g.a[axis] } else { g.b[axis] };
+        let mut n = Vec3::ZERO;
+        n[axis] = side;
+        (y, n)
+    })
+}
+
+/// [`box_exit`]'s next level: the landing point y (normals n so far) is covered by box j; moves it onto
+/// each face of j on an axis not used yet, and keeps the nearest uncovered result in `best`.
+#[allow(clippy::too_many_arguments, reason = "one level of box_exit's search, its state passed along")]
+fn exit_via(
+    geoms: &[ObjectGeom],
+    j: usize,
+    x: Vec3,
+    y: Vec3,
+    n: Vec3,
+    dims: usize,
+    levels: u32,
+    best: &mut (f32, Option<(Vec3, Vec3)>),
+) {
+    let c = &geoms[j];
+    for b in (0..dims).filter(|&b| n[b] == 0.0) {
+        for side in [-1.0f32, 1.0] {
+            let mut y2 = y;
+            y2[b] = if side < 0.0 { c.a[b] } else { c.b[b] };
+            let mut n2 = n;
+            n2[b] = side;
+            let d = (y2 - x).length();
+            if d >= best.0 {
+                continue;
+            }
+            match box_covering(geoms, y2, n2, dims) {
+                None => *best = (d, Some((y2, n2))),
+                Some(j2) if levels > 1 => exit_via(geoms, j2, x, y2, n2, dims, levels - 1, best),
+                Some(_) => {}
+            }
+        }
+    }
+}
+
 /// Outward unit normal of an object's surface nearest to x (twin of `surface_normal` in forces.wgsl):
 /// a box's from its closest point, or, for x inside it, its nearest face ([`nearest_face`]); a
 /// sphere's radial direction. None at a sphere's centre and for kind 2.

@@ -4,7 +4,7 @@
 //! keep their prescribed (here: fixed) state.
 
 use super::CpuState;
-use super::forces::{ObjectGeom, nearest_face};
+use super::forces::{ObjectGeom, box_exit};
 use crate::scenario::SolidFlags;
 use crate::sim::bed::{self, BedTable};
 use crate::sim::params::Params;
@@ -62,7 +62,8 @@ pub fn wrap_periodic(p: &Params, mut x: Vec3) -> Vec3 {
 
 /// Contact with the rigid boundary objects (SPEC §4.1 "impenetrable objects", §7.5 penetration
 /// invariant; README: deviations): a material particle found inside an object's shape at tⁿ⁺¹ is put
-/// back on the nearest face (box) or on the sphere, and the part of its velocity relative to the object
+/// back on the nearest point of the boxes' surface ([`box_exit`]: the nearest face, unless another box
+/// covers it there) or on the sphere, and the part of its velocity relative to the object
 /// that points into the object is removed (inelastic normal contact; the tangential part is left to
 /// the no-slip viscous term). The virtual particles alone cannot guarantee this: blood that has left
 /// the tissue is pressureless until it is compressed to nˡ = 1 (2.53 clamped at 0), so it falls
@@ -78,9 +79,15 @@ pub fn object_contact(geoms: &[ObjectGeom], vel: &[Vec3], beds: &BedTable, three
         if g.kind == 0 {
             inside = (0..dims).all(|a| x[a] > g.a[a] && x[a] < g.b[a]);
             if inside {
-                let (axis, side) = nearest_face(g, *x, dims);
-                x[axis] = if side < 0.0 { g.a[axis] } else { g.b[axis] };
-                n[axis] = side;
+                (*x, n) = box_exit(geoms, k, *x, dims);
+                // the inward part along each face's normal (one, or two at a corner of two boxes)
+                for a in 0..3 {
+                    let vn = (v[a] - vo[a]) * n[a];
+                    if vn < 0.0 {
+                        v[a] -= n[a] * vn;
+                    }
+                }
+                continue;
             }
         } else if g.kind == 1 {
             let d = *x - g.a;
@@ -191,5 +198,43 @@ mod tests {
         let (mut x, mut v) = (Vec3::new(3.0, 0.0, 0.0), Vec3::new(-1.0, 0.0, 0.0));
         object_contact(&[ball], &[Vec3::ZERO], &BedTable::default(), true, &mut x, &mut v);
         assert_eq!((x, v), (Vec3::new(3.0, 0.0, 0.0), Vec3::new(-1.0, 0.0, 0.0)));
+    }
+
+    /// A vessel of boxes: a floor and two side walls standing on it, meeting at a corner (the walls of
+    /// `syringe.ron`'s barrel, of `docs/sealed_column.ron`). A particle that entered a wall just above
+    /// the floor goes back to the wall's inner face, not onto the plane the wall shares with the floor
+    /// (its nearest face), along which it would slide out; one that entered the corner goes to the
+    /// corner, not out through the wall's outer face; inward velocity is removed along both normals.
+    /// Where no other box covers the nearest face, that face it is, as with one box.
+    #[test]
+    fn object_contact_keeps_particles_inside_a_vessel_of_boxes() {
+        let floor = ObjectGeom { kind: 0, a: Vec3::new(-3.0, -3.0, -1.0), b: Vec3::new(3.0, 3.0, 0.0) };
+        let wall_x = ObjectGeom { kind: 0, a: Vec3::new(1.0, -3.0, 0.0), b: Vec3::new(3.0, 3.0, 5.0) };
+        let wall_y = ObjectGeom { kind: 0, a: Vec3::new(-1.0, 1.0, 0.0), b: Vec3::new(1.0, 3.0, 5.0) };
+        let geoms = [floor, wall_x, wall_y];
+        let vel = [Vec3::ZERO; 3];
+        let beds = BedTable::default();
+        let contact = |x: Vec3, v: Vec3| {
+            let (mut x, mut v) = (x, v);
+            object_contact(&geoms, &vel, &beds, true, &mut x, &mut v);
+            (x, v)
+        };
+        // the wall's foot: the seam z = 0 is nearer (0.1) than the inner face x = 1 (0.3)
+        let (x, v) = contact(Vec3::new(1.3, 0.0, 0.1), Vec3::new(0.5, 0.2, -0.2));
+        assert_eq!(x, Vec3::new(1.0, 0.0, 0.1));
+        assert_eq!(v, Vec3::new(0.0, 0.2, -0.2));
+        // the corner of the two walls, entered diagonally: to the corner, both inward parts removed
+        let (x, v) = contact(Vec3::new(1.1, 1.2, 2.0), Vec3::new(0.5, 0.5, 0.1));
+        assert_eq!(x, Vec3::new(1.0, 1.0, 2.0));
+        assert_eq!(v, Vec3::new(0.0, 0.0, 0.1));
+        // higher up a wall, and into the floor away from the walls: the nearest face, as with one box
+        let (x, _) = contact(Vec3::new(1.2, -2.0, 3.0), Vec3::ZERO);
+        assert_eq!(x, Vec3::new(1.0, -2.0, 3.0));
+        let (x, _) = contact(Vec3::new(0.0, -1.0, -0.2), Vec3::ZERO);
+        assert_eq!(x, Vec3::new(0.0, -1.0, 0.0));
+        // nothing moves a particle resting on the floor or against a wall
+        for p in [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 2.0), Vec3::new(1.0, 1.0, 0.0)] {
+            assert_eq!(contact(p, Vec3::new(0.1, 0.1, -0.1)), (p, Vec3::new(0.1, 0.1, -0.1)));
+        }
     }
 }
