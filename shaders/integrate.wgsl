@@ -190,7 +190,7 @@ fn object_contact(x_in: vec3<f32>, v_in: vec3<f32>) -> Contact {
             if (inside) {
                 let e = box_exit(k, x, dims);
                 x = e.y;
-                // the inward part along each face's normal (one, or two at a corner of two boxes)
+                // the inward part along each face's normal (one, or two or three at a corner of boxes)
                 for (var a = 0; a < 3; a++) {
                     let vn = (v[a] - o.vel[a]) * e.n[a];
                     if (vn < 0.0) {

@@ -80,7 +80,7 @@ pub fn object_contact(geoms: &[ObjectGeom], vel: &[Vec3], beds: &BedTable, three
             inside = (0..dims).all(|a| x[a] > g.a[a] && x[a] < g.b[a]);
             if inside {
                 (*x, n) = box_exit(geoms, k, *x, dims);
-                // the inward part along each face's normal (one, or two at a corner of two boxes)
+                // the inward part along each face's normal (one, or two or three at a corner of boxes)
                 for a in 0..3 {
                     let vn = (v[a] - vo[a]) * n[a];
                     if vn < 0.0 {
