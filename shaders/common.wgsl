@@ -515,8 +515,9 @@ fn face_move(c: ObjectGpu, b: i32, s: i32, x: vec3<f32>, y: vec3<f32>, n: vec3<f
     return BoxExit(len3(y2 - x), false, y2, n2);
 }
 
-// WGSL has no recursion, so cpu::forces::exit_via's two levels are two functions: exit_via, then this.
-// box_exit's last level (cpu::forces::exit_via with levels = 1): y (normals n) is covered by box j;
+// WGSL has no recursion, so cpu::forces::exit_via's two levels below the first face are two
+// functions: exit_via, then this (after it every axis has a normal).
+// box_exit's last level (cpu::forces::exit_via with two axes used): y (normals n) is covered by box j;
 // y moved onto each face of j on an unused axis, the nearest uncovered result kept.
 fn exit_via_last(j: u32, x: vec3<f32>, y: vec3<f32>, n: vec3<f32>, dims: i32, best_in: BoxExit) -> BoxExit {
     var best = best_in;
@@ -541,8 +542,8 @@ fn exit_via_last(j: u32, x: vec3<f32>, y: vec3<f32>, n: vec3<f32>, dims: i32, be
     return best;
 }
 
-// box_exit's middle level (exit_via with levels = 2): as exit_via_last, a covered result going on to
-// exit_via_last.
+// box_exit's middle level (cpu::forces::exit_via with one axis used): as exit_via_last, a covered
+// result going on to exit_via_last.
 fn exit_via(j: u32, x: vec3<f32>, y: vec3<f32>, n: vec3<f32>, dims: i32, best_in: BoxExit) -> BoxExit {
     var best = best_in;
     let c = objects[j];

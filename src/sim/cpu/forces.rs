@@ -161,7 +161,7 @@ pub fn box_exit(geoms: &[ObjectGeom], k: usize, x: Vec3, dims: usize) -> (Vec3, 
             n[a] = side;
             match box_covering(geoms, y, n, dims) {
                 None => best = (d, Some((y, n))),
-                Some(j) => exit_via(geoms, j, x, y, n, dims, 2, &mut best),
+                Some(j) => exit_via(geoms, j, x, y, n, dims, &mut best),
             }
         }
     }
@@ -176,8 +176,8 @@ pub fn box_exit(geoms: &[ObjectGeom], k: usize, x: Vec3, dims: usize) -> (Vec3, 
 }
 
 /// [`box_exit`]'s next level: the landing point y (normals n so far) is covered by box j; moves it onto
-/// each face of j on an axis not used yet, and keeps the nearest uncovered result in `best`.
-#[allow(clippy::too_many_arguments, reason = "one level of box_exit's search, its state passed along")]
+/// each face of j on an axis not used yet, and keeps the nearest uncovered result in `best`. The search
+/// ends when every axis has a normal (a corner of three boxes in 3-D).
 fn exit_via(
     geoms: &[ObjectGeom],
     j: usize,
@@ -185,7 +185,6 @@ fn exit_via(
     y: Vec3,
     n: Vec3,
     dims: usize,
-    levels: u32,
     best: &mut (f32, Option<(Vec3, Vec3)>),
 ) {
     let c = &geoms[j];
@@ -201,8 +200,7 @@ fn exit_via(
             }
             match box_covering(geoms, y2, n2, dims) {
                 None => *best = (d, Some((y2, n2))),
-                Some(j2) if levels > 1 => exit_via(geoms, j2, x, y2, n2, dims, levels - 1, best),
-                Some(_) => {}
+                Some(j2) => exit_via(geoms, j2, x, y2, n2, dims, best),
             }
         }
     }
