@@ -273,6 +273,15 @@ struct CellEntry {
     id: u32,
 }
 
+// One liquid particle's state that lives across a grid build (grid_reorder): position and mass,
+// velocity, the predictor's a⁰ and the id (x of `id`; 64 bytes, vec4-aligned).
+struct LiquidMove {
+    pos: vec4<f32>,
+    vel: vec4<f32>,
+    acc0: vec4<f32>,
+    id: vec4<u32>,
+}
+
 // Mirrors `GridSet`: the particle set a grid pass instance bins.
 struct GridSet {
     n: u32,
@@ -375,6 +384,8 @@ const JACOBI_SWEEPS: u32 = 6u;
 // the moulded beds' heightfields (twin: src/sim/bed.rs BedTable): per bed BED_HEADER words, then the
 // column tops; ObjectGpu.bed = 1 + its header's index
 @group(0) @binding(49) var<storage, read_write> bed_table: array<f32>;
+// grid_reorder (grid.wgsl): the liquid's live arrays gathered in cell order, copied back by the apply pass
+@group(0) @binding(50) var<storage, read_write> liquid_scratch: array<LiquidMove>;
 
 // ---- emitters (twin: src/sim/cpu/emit.rs) ----
 const FLOW_MAX: u32 = 1024u;

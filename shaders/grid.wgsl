@@ -154,3 +154,35 @@ fn grid_sort_cells(@builtin(global_invocation_id) gid: vec3<u32>) {
         grid_order[w] = v;
     }
 }
+
+// grid_reorder (issue 4, "particle arrays reordered by cell"; twin: grid::grid_reorder): after the
+// liquid's grid build of a step, its storage order becomes the cell order of the fresh list, so the
+// neighbour walks gather the velocities and densities of a cell's particles from nearby memory however
+// far the blood has flowed and mixed (the candidates' positions already come from the list). Only the
+// arrays that live across the grid build move — position and mass, velocity, the predictor's a⁰ (read
+// by the corrector) and the id — as emit_compact moves them: ρ, nˡ, nˢ, p, a and ṽ are written by
+// evaluation 1 before anything reads them. Two passes through liquid_scratch (a gather cannot write
+// the arrays it reads); the apply pass makes the list's entries point at their new places.
+@compute @workgroup_size(64)
+fn grid_reorder_gather(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if (k >= params.counts.x) {
+        return;
+    }
+    let i = liquid_order[k].id;
+    liquid_scratch[k] = LiquidMove(liquid_pos[i], liquid_vel[i], liquid_acc0[i], vec4<u32>(liquid_id[i], 0u, 0u, 0u));
+}
+
+@compute @workgroup_size(64)
+fn grid_reorder_apply(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if (k >= params.counts.x) {
+        return;
+    }
+    let m = liquid_scratch[k];
+    liquid_pos[k] = m.pos;
+    liquid_vel[k] = m.vel;
+    liquid_acc0[k] = m.acc0;
+    liquid_id[k] = m.id.x;
+    liquid_order[k].id = k;
+}

@@ -339,7 +339,8 @@ fn integrate_check_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let vmax2 = params.max_speed * params.max_speed;
     if (!(is_finite3(x) && is_finite3(v)) || dot3(v, v) > vmax2 || !is_finite_f32(liquid_dens[i].x)) {
         atomicOr(&step.status, STATUS_NONFINITE_LIQUID);
-        atomicMin(&step.bad_liquid, i);
+        // the id, not the index: the liquid is renumbered by cell every step (grid_reorder)
+        atomicMin(&step.bad_liquid, liquid_id[i]);
     }
 }
 

@@ -111,11 +111,32 @@ pub fn measure(
     min_steps: u64,
     max_steps: u64,
 ) -> Result<BenchRow, BenchError> {
-    measure_with(sc, backend, min_wall_s, min_steps, max_steps, None)
+    measure_with(sc, backend, min_wall_s, min_steps, max_steps, None, false)
+}
+
+/// Puts the generated liquid in a random storage order (a fixed xorshift permutation): the locality a
+/// long mixing flow leaves behind, which `numerics.reorder_liquid` restores (`perfuse bench
+/// --shuffle-liquid`). The particles get their ids in this order, so it is a relabelling, not a change
+/// of the scene.
+pub fn shuffle_liquid(g: &mut crate::scenario::GeneratedParticles) {
+    let n = g.liquid.pos.len();
+    let mut perm: Vec<usize> = (0..n).collect();
+    let mut x = 0x9e37_79b9_7f4a_7c15u64;
+    for i in (1..n).rev() {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        perm.swap(i, (x % (i as u64 + 1)) as usize);
+    }
+    let l = &mut g.liquid;
+    l.pos = perm.iter().map(|&i| l.pos[i]).collect();
+    l.vel = perm.iter().map(|&i| l.vel[i]).collect();
+    l.mass = perm.iter().map(|&i| l.mass[i]).collect();
 }
 
 /// [`measure`], recording the run to `record` as the viewer does (see [`RecordCost`]; its
-/// `overhead_measured_pct` is filled in by [`record_overhead`]).
+/// `overhead_measured_pct` is filled in by [`record_overhead`]), with the liquid generated in a random
+/// order when `shuffled_liquid` ([`shuffle_liquid`]).
 pub fn measure_with(
     sc: &Scenario,
     backend: BackendKind,
@@ -123,8 +144,13 @@ pub fn measure_with(
     min_steps: u64,
     max_steps: u64,
     record: Option<&std::path::Path>,
+    shuffled_liquid: bool,
 ) -> Result<BenchRow, BenchError> {
-    let sim = Simulation::new(sc, backend)?;
+    let mut generated = crate::scenario::generate(sc);
+    if shuffled_liquid {
+        shuffle_liquid(&mut generated);
+    }
+    let sim = Simulation::from_generated(sc, generated, backend)?;
     let mut rs = RecordedSimulation { sim, recorder: None };
     rs.sim.step()?; // warm-up: first-use allocations, shader compilation
     let mut cost = RecordCost::default();
@@ -239,8 +265,8 @@ pub fn record_overhead(
     min_wall_s: f64,
     file: &std::path::Path,
 ) -> Result<(BenchRow, BenchRow), BenchError> {
-    let plain = measure_with(sc, backend, min_wall_s, 3, u64::MAX, None)?;
-    let mut rec = measure_with(sc, backend, min_wall_s, 3, u64::MAX, Some(file))?;
+    let plain = measure_with(sc, backend, min_wall_s, 3, u64::MAX, None, false)?;
+    let mut rec = measure_with(sc, backend, min_wall_s, 3, u64::MAX, Some(file), false)?;
     let _ = std::fs::remove_file(file);
     if let Some(c) = &mut rec.recording {
         c.overhead_measured_pct = 100.0 * (1.0 - rec.ps_per_s / plain.ps_per_s.max(1e-30));

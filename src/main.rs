@@ -126,7 +126,8 @@ enum Cmd {
         /// Measure this scenario instead (adds its real-time factor and dt-limiting criterion).
         #[arg(long)]
         scenario: Option<PathBuf>,
-        /// Override scenario fields (with --scenario), as for `run`.
+        /// Override scenario fields, as for `run` (of --scenario, or of the perfused block: e.g.
+        /// `numerics.reorder_liquid=false`).
         #[arg(long = "set", value_name = "FIELD=VALUE")]
         set: Vec<String>,
         /// Back-ends to measure (side by side; a missing GPU is reported and skipped).
@@ -142,6 +143,10 @@ enum Cmd {
         /// hashes) to a temporary file: overhead, keyframe cost and size, bytes per simulated second.
         #[arg(long)]
         record: bool,
+        /// Generate the liquid in a random storage order: the locality a long mixing flow leaves
+        /// behind, which `numerics.reorder_liquid` (default on) restores by renumbering it by cell.
+        #[arg(long)]
+        shuffle_liquid: bool,
     },
     /// Render a scenario headless at simulated time T to a PNG (offscreen, the viewer's renderer), or a
     /// PNG sequence from T to --until every --every seconds.
@@ -687,7 +692,7 @@ fn real_main() -> Result<()> {
             }
             Ok(())
         }
-        Cmd::Bench { sizes, scenario, set, backends, seconds, json, record } => {
+        Cmd::Bench { sizes, scenario, set, backends, seconds, json, record, shuffle_liquid } => {
             if !(seconds.is_finite() && seconds > 0.0) {
                 bail!("--seconds must be positive, got {seconds}");
             }
@@ -697,7 +702,15 @@ fn real_main() -> Result<()> {
                     if sizes.is_empty() || sizes.iter().any(|n| !(16..=20_000_000).contains(n)) {
                         bail!("--sizes must list particle counts between 16 and 20000000");
                     }
-                    sizes.iter().map(|&n| perfuse::bench::perfused_block(n)).collect::<Result<_, _>>()?
+                    let block = |n: usize| -> Result<Scenario, perfuse::scenario::ScenarioError> {
+                        let mut sc = perfuse::bench::perfused_block(n)?;
+                        for spec in &set {
+                            sc = sc.with_override(spec)?;
+                        }
+                        sc.validate("(bench block)")?;
+                        Ok(sc)
+                    };
+                    sizes.iter().map(|&n| block(n)).collect::<Result<_, _>>()?
                 }
             };
             let mut rows = Vec::new();
@@ -716,7 +729,7 @@ fn real_main() -> Result<()> {
                             rec
                         })
                     } else {
-                        perfuse::bench::measure(sc, b.into(), seconds, 3, u64::MAX)
+                        perfuse::bench::measure_with(sc, b.into(), seconds, 3, u64::MAX, None, shuffle_liquid)
                     };
                     let row = match measured {
                         Ok(row) => row,

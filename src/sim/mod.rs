@@ -268,21 +268,35 @@ pub struct Simulation {
 
 impl Simulation {
     pub fn new(scenario: &Scenario, backend: BackendKind) -> Result<Simulation, SimError> {
-        Self::build(scenario, backend, None)
+        Self::build(scenario, crate::scenario::generate(scenario), backend, None)
+    }
+
+    /// Like [`Simulation::new`] from particles already generated from `scenario` (and perhaps
+    /// rearranged: `perfuse bench --shuffle-liquid` generates the liquid in a random storage order).
+    pub fn from_generated(
+        scenario: &Scenario,
+        generated: crate::scenario::GeneratedParticles,
+        backend: BackendKind,
+    ) -> Result<Simulation, SimError> {
+        Self::build(scenario, generated, backend, None)
     }
 
     /// Like [`Simulation::new`], with the GPU back-end on an existing device (the viewer shares its
     /// device between simulation and renderer). `gpu = None` selects the CPU back-end.
     pub fn with_gpu(scenario: &Scenario, gpu: Option<gpu::GpuContext>) -> Result<Simulation, SimError> {
         match gpu {
-            Some(ctx) => Self::build(scenario, BackendKind::Gpu, Some(ctx)),
-            None => Self::build(scenario, BackendKind::Cpu, None),
+            Some(ctx) => Self::build(scenario, crate::scenario::generate(scenario), BackendKind::Gpu, Some(ctx)),
+            None => Self::build(scenario, crate::scenario::generate(scenario), BackendKind::Cpu, None),
         }
     }
 
-    fn build(scenario: &Scenario, backend: BackendKind, ctx: Option<gpu::GpuContext>) -> Result<Simulation, SimError> {
+    fn build(
+        scenario: &Scenario,
+        generated: crate::scenario::GeneratedParticles,
+        backend: BackendKind,
+        ctx: Option<gpu::GpuContext>,
+    ) -> Result<Simulation, SimError> {
         scenario.validate("(scenario)")?;
-        let generated = crate::scenario::generate(scenario);
         if generated.liquid_capacity < generated.liquid.pos.len() {
             return Err(SimError::Scenario(ScenarioError::Invalid {
                 path: "(scenario)".into(),

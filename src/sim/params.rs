@@ -42,6 +42,8 @@ pub struct Params {
     pub liquid_tension_in: Vec<TensionRegion>,
     /// Hourglass-control coefficient c of `numerics.hourglass` (0: off).
     pub hourglass: f32,
+    /// `numerics.reorder_liquid`: renumber the liquid by cell every step (`grid_reorder`).
+    pub reorder_liquid: bool,
     /// Ligament springs of the tethered solid particles: ω² [1/s²] and 2ζω [1/s] (`ligaments`; 0: none).
     pub tether_omega2: f32,
     pub tether_damping: f32,
@@ -279,6 +281,7 @@ impl Params {
                 Vec::new()
             },
             hourglass: n.hourglass.unwrap_or(0.0) as f32,
+            reorder_liquid: n.reorder_liquid,
             tether_omega2: tether_omega.powi(2) as f32,
             tether_damping: tether_zeta_2omega as f32,
             membrane_stiffness: capsule as f32,

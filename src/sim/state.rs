@@ -3,7 +3,7 @@
 
 use glam::{Mat3, Vec3};
 
-/// Fields common to both phases, in particle-id order.
+/// Fields common to both phases, in ascending id order (`in_id_order`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PhaseState {
     pub id: Vec<u32>,
@@ -55,6 +55,29 @@ impl PhaseState {
     }
     pub fn total_mass(&self) -> f64 {
         self.mass.iter().map(|&m| m as f64).sum()
+    }
+
+    /// The same particles in ascending id order: the back-ends renumber the liquid by cell every step
+    /// (`grid_reorder`), the state they read back is always in id order.
+    pub fn in_id_order(self) -> PhaseState {
+        if self.id.is_sorted() || self.id.len() != self.pos.len() {
+            return self;
+        }
+        let mut order: Vec<usize> = (0..self.id.len()).collect();
+        order.sort_unstable_by_key(|&k| self.id[k]);
+        fn gather<T: Copy>(v: &[T], order: &[usize]) -> Vec<T> {
+            if v.len() == order.len() { order.iter().map(|&k| v[k]).collect() } else { v.to_vec() }
+        }
+        PhaseState {
+            id: gather(&self.id, &order),
+            pos: gather(&self.pos, &order),
+            vel: gather(&self.vel, &order),
+            rho: gather(&self.rho, &order),
+            n_s: gather(&self.n_s, &order),
+            n_l: gather(&self.n_l, &order),
+            p: gather(&self.p, &order),
+            mass: gather(&self.mass, &order),
+        }
     }
 }
 

@@ -86,6 +86,23 @@ pub fn grid_build(g: &GridDims, pos: &[Vec3], out: &mut CellList) {
     }
 }
 
+/// grid_reorder_gather · grid_reorder_apply: renumbers the liquid into the cell order of its fresh
+/// list `list` (issue 4: particle arrays reordered by cell), so that a neighbour walk gathers the
+/// velocities and densities of one cell's particles from nearby memory however far the blood has
+/// flowed and mixed; the list then points at the new places (`order` = 0, 1, 2, …; its cells and
+/// positions are unchanged). Every array moves (the GPU moves only those live across the grid build —
+/// x and m, v, a⁰, id —: the others are rewritten by evaluation 1 before they are read).
+pub fn grid_reorder(l: &mut crate::sim::cpu::LiquidSet, list: &mut CellList) {
+    let order = &list.order;
+    if order.len() != l.x.len() || order.iter().enumerate().all(|(k, &i)| k == i as usize) {
+        return;
+    }
+    l.gather(order);
+    for (k, o) in list.order.iter_mut().enumerate() {
+        *o = k as u32;
+    }
+}
+
 /// Neighbour query over one cell-sorted set, at the positions the set had when its list was built (the
 /// solver rebuilds the lists whenever positions change, as the GPU twin does).
 pub struct Neighbours<'a> {

@@ -66,11 +66,13 @@ pub enum Slot {
     SolidAffine,
     /// The moulded beds' heightfields (`sim::bed::BedTable`; static).
     BedTable,
+    /// `grid_reorder`: the liquid's live arrays gathered in cell order (`LiquidMove`, 64 bytes each).
+    LiquidScratch,
 }
 
 impl Slot {
     /// The slot with the highest binding number (sizes the slot table).
-    pub const LAST: Slot = Slot::BedTable;
+    pub const LAST: Slot = Slot::LiquidScratch;
 
     /// Binding number in group 0 (common.wgsl).
     pub const fn binding(self) -> u32 {
@@ -130,6 +132,7 @@ impl Slot {
             Slot::SolidPosRef => "solid_pos_ref",
             Slot::SolidAffine => "solid_affine",
             Slot::BedTable => "bed_table",
+            Slot::LiquidScratch => "liquid_scratch",
         }
     }
 
@@ -177,5 +180,6 @@ mod tests {
         assert_eq!(Slot::GridBlockSums.binding(), 46);
         assert_eq!(Slot::SolidAffine.binding(), 48);
         assert_eq!(Slot::BedTable.binding(), 49);
+        assert_eq!(Slot::LiquidScratch.binding(), 50);
     }
 }

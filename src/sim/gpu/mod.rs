@@ -238,6 +238,9 @@ fn diverged(step: u64, t: f64, particle: String, reason: String) -> SimError {
 /// F or bond breaking there (its particles never move, and `forces_solid`/`forces_xsph_solid` would only
 /// write zero and v, which the buffers hold from the upload). `density_solid` still runs when the
 /// liquid–void attraction (3.4) reads the skeleton's nˡ (a fixed fabric).
+/// Size of grid.wgsl's `LiquidMove` (position, velocity, a⁰, id: four vec4s).
+const LIQUID_MOVE_BYTES: usize = 64;
+
 fn static_skeleton_skips(entry: &str, wicking: bool) -> bool {
     let skipped = [
         passes::SOLID_STRESS.entry,
@@ -341,6 +344,9 @@ impl GpuSolver {
         for slot in [Slot::LiquidCellStart, Slot::SolidCellStart, Slot::BoundaryCellStart] {
             solver_init.push((slot, vec![0u8; 4 * (cells as usize + 1)]));
         }
+        // grid_reorder's scratch: one LiquidMove (4 vec4s) per liquid particle, when it runs
+        let scratch = if params.reorder_liquid { LIQUID_MOVE_BYTES * capacity as usize } else { 0 };
+        solver_init.push((Slot::LiquidScratch, vec![0u8; scratch]));
         let gs = |n: u32| GridSet { n, cells, _pad0: 0, _pad1: 0 };
         let (g0, g1, g2) = (bytes(&[gs(counts.liquid)]), bytes(&[gs(counts.solid)]), bytes(&[gs(counts.boundary)]));
         let max_set = capacity.max(counts.solid).max(counts.boundary) as usize;
@@ -701,6 +707,11 @@ impl GpuSolver {
         }
         // the hourglass fit is not dispatched when the control is off (the CPU does not compute it)
         if spec.entry == passes::SOLID_FIT.entry && self.params.hourglass <= 0.0 {
+            return;
+        }
+        // nor the renumbering of the liquid when the scenario keeps its order
+        let reorder = [passes::GRID_REORDER_GATHER.entry, passes::GRID_REORDER_APPLY.entry];
+        if !self.params.reorder_liquid && reorder.contains(&spec.entry) {
             return;
         }
         if !self.params.solid_dynamic && static_skeleton_skips(spec.entry, self.params.wicking > 0.0) {
@@ -1277,7 +1288,7 @@ impl GpuSolver {
         Ok(State {
             t: self.t,
             steps: self.steps,
-            liquid: PhaseState { id: liquid_ids, ..phase(&lp, &lv, &ld) },
+            liquid: PhaseState { id: liquid_ids, ..phase(&lp, &lv, &ld) }.in_id_order(),
             solid: phase(&sp, &sv, &sd),
             solid_extra: SolidExtra {
                 flags: self.solid_flags.clone(),
@@ -1509,7 +1520,9 @@ fn create_pipelines(device: &wgpu::Device, buffers: &SimBuffers) -> Result<HashM
             compilation_options: Default::default(),
             cache: None,
         });
-        let instances: &[Option<GridOf>] = if spec.family == "grid" {
+        // a pass over a grid-generic slot gets one bind group per set (grid_reorder binds the liquid's own)
+        let generic = [Slot::GridSet, Slot::GridPos, Slot::GridOrder, Slot::GridCellStart, Slot::GridCellOf];
+        let instances: &[Option<GridOf>] = if spec.slots.iter().any(|s| generic.contains(s)) {
             &[Some(GridOf::Liquid), Some(GridOf::Solid), Some(GridOf::Boundary)]
         } else {
             &[None]

@@ -60,6 +60,11 @@ pub const GRID_SCAN_TOP: PassSpec = PassSpec {
 pub const GRID_SCAN_APPLY: PassSpec = pass("grid_scan_apply", "grid", SCAN_SLOTS, Dispatch::GridCells);
 pub const GRID_SCATTER: PassSpec = pass("grid_scatter", "grid", GRID_SLOTS, Dispatch::GridParticles);
 pub const GRID_SORT_CELLS: PassSpec = pass("grid_sort_cells", "grid", GRID_SLOTS, Dispatch::GridCells);
+/// The liquid renumbered into the cell order of its fresh list (twin: `grid::grid_reorder`): gather into
+/// the scratch, then copy back and point the list at the new places.
+const REORDER_SLOTS: &[Slot] = &[Params, LiquidPos, LiquidVel, LiquidAcc0, LiquidId, LiquidOrder, LiquidScratch];
+pub const GRID_REORDER_GATHER: PassSpec = pass("grid_reorder_gather", "grid", REORDER_SLOTS, Dispatch::Liquid);
+pub const GRID_REORDER_APPLY: PassSpec = pass("grid_reorder_apply", "grid", REORDER_SLOTS, Dispatch::Liquid);
 
 pub const DENSITY_LIQUID: PassSpec = pass(
     "density_liquid",
@@ -243,8 +248,12 @@ pub const FRACTURE_APPLY: PassSpec = pass(
     &[Params, Step, Objects, SolidPos, BondTable, BondCount, BondLimit],
     Dispatch::Solid,
 );
-pub const INTEGRATE_CHECK_LIQUID: PassSpec =
-    pass("integrate_check_liquid", "integrate", &[Params, Step, LiquidPos, LiquidVel, LiquidDens], Dispatch::Liquid);
+pub const INTEGRATE_CHECK_LIQUID: PassSpec = pass(
+    "integrate_check_liquid",
+    "integrate",
+    &[Params, Step, LiquidPos, LiquidVel, LiquidDens, LiquidId],
+    Dispatch::Liquid,
+);
 pub const INTEGRATE_CHECK_SOLID: PassSpec =
     pass("integrate_check_solid", "integrate", &[Params, Step, SolidPos, SolidVel, SolidDens], Dispatch::Solid);
 
@@ -325,6 +334,8 @@ pub const ALL_PASSES: &[PassSpec] = &[
     GRID_SCAN_APPLY,
     GRID_SCATTER,
     GRID_SORT_CELLS,
+    GRID_REORDER_GATHER,
+    GRID_REORDER_APPLY,
     DENSITY_LIQUID,
     DENSITY_SOLID,
     SOLID_STRESS,
@@ -424,11 +435,13 @@ pub const STEP_ADVANCE: &[Stage] = &[
     Stage::Pass(INTEGRATE_ADVANCE_SOLID),
 ];
 
-/// Rest of the second half: boundaries and grids at tⁿ⁺¹, evaluation 1, corrector, fracture,
-/// divergence check.
+/// Rest of the second half: boundaries and grids at tⁿ⁺¹ (the liquid renumbered by cell when
+/// `numerics.reorder_liquid`), evaluation 1, corrector, fracture, divergence check.
 pub const STEP_SECOND: &[Stage] = &[
     Stage::Pass(INTEGRATE_BOUNDARY),
     Stage::Grid(GridOf::Liquid),
+    Stage::Pass(GRID_REORDER_GATHER),
+    Stage::Pass(GRID_REORDER_APPLY),
     Stage::Grid(GridOf::Solid),
     Stage::Grid(GridOf::Boundary),
     Stage::Pass(DENSITY_LIQUID),
