@@ -260,15 +260,62 @@ fn override_errors_are_clear() {
     let ok =
         Scenario::from_str_with_overrides(BASE, "base.ron", &["particles.0.fraction=0.5".into()]).expect("enum path");
     assert!(matches!(ok.particles[0], perfuse::scenario::Generator::Box { fraction, .. } if fraction == 0.5));
-    // A whole enum value loses its variant's name on the way: the error says to set its fields instead.
-    let e = Scenario::from_str_with_overrides(
+    // A value of the wrong type or an unknown variant: the message names the field, the type's words
+    // and the variants there are.
+    let e = Scenario::from_str_with_overrides(BASE, "base.ron", &["boundaries.0.shape=Cube(side: 1)".into()])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("boundaries.0.shape") && e.contains("Cube") && e.contains("Sphere"), "{e}");
+}
+
+/// Whole enum values, lists of them and new structs are typed by the field they replace (RON spliced
+/// into the scenario's own), integers where floats are expected included; the untyped shorthands
+/// still work (a bare number or `null` for an optional field).
+#[test]
+fn overrides_take_whole_enum_values() {
+    use perfuse::scenario::{Motion, Region};
+    let base = Scenario::from_str_named(BASE, "base.ron").expect("base");
+    let one = |spec: &str| base.with_override(spec).unwrap_or_else(|e| panic!("{spec}: {e}"));
+    let s = one("boundaries.0.shape=Sphere(centre: (0.005, 0.01, 0), radius: 0.002)");
+    assert_eq!(s.boundaries[0].shape, Region::Sphere { centre: [0.005, 0.01, 0.0], radius: 0.002 });
+    let s = one("boundaries.0.motion=Translate(velocity: (0, -0.1, 0), stop: Some(0.5))");
+    assert_eq!(s.boundaries[0].motion, Motion::Translate { velocity: [0.0, -0.1, 0.0], start: 0.0, stop: Some(0.5) });
+    let s =
+        one("numerics.liquid_tension_in=[Box(min: (0, 0, 0), max: (1, 1, 1)), Sphere(centre: (0, 0, 0), radius: 1)]");
+    assert_eq!(s.numerics.liquid_tension_in.len(), 2);
+    assert!(matches!(s.numerics.liquid_tension_in[1], Region::Sphere { radius, .. } if radius == 1.0));
+    let s = one("particles.0=Sphere(phase: Liquid, centre: (0.005, 0, 0), radius: 0.004, fraction: 1)");
+    assert!(matches!(s.particles[0], perfuse::scenario::Generator::Sphere { radius, .. } if radius == 0.004));
+    // untyped shorthands
+    assert_eq!(one("numerics.fixed_dt=1e-5").numerics.fixed_dt, Some(1e-5));
+    assert_eq!(one("numerics.fixed_dt=Some(2e-5)").numerics.fixed_dt, Some(2e-5));
+    assert_eq!(one("numerics.fixed_dt=null").numerics.fixed_dt, None);
+    assert_eq!(one("name=\"quoted name\"").name, "quoted name");
+    // the result validates as a file would
+    let v = Scenario::from_str_with_overrides(
         BASE,
         "base.ron",
-        &["numerics.liquid_tension_in=[Box(min: (0, 0, 0), max: (1, 1, 1))]".into()],
+        &["boundaries.0.shape=Box(min: (0, 0.01, 0), max: (0.01, 0.012, 0))".into()],
     )
-    .unwrap_err()
-    .to_string();
-    assert!(e.contains("numerics.liquid_tension_in") && e.contains("set its fields"), "{e}");
+    .expect("valid");
+    assert!(matches!(v.boundaries[0].shape, Region::Box { max, .. } if max[1] == 0.012));
+}
+
+/// The typed route writes each scenario out as RON and reads it back: every shipped scenario survives
+/// that round trip unchanged.
+#[test]
+fn shipped_scenarios_round_trip_through_ron() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios");
+    for entry in std::fs::read_dir(&dir).expect("assets/scenarios") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_some_and(|e| e == "ron") {
+            let sc = Scenario::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            let same =
+                sc.with_override("name=\"renamed\"").and_then(|s| s.with_override(&format!("name={:?}", sc.name)));
+            let same = same.unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert!(same == sc, "{} changed on the way through RON", path.display());
+        }
+    }
 }
 
 #[test]

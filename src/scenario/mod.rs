@@ -7,6 +7,7 @@
 mod generate;
 pub mod liver;
 pub mod mesh;
+mod ron_path;
 mod schema;
 mod validate;
 
@@ -82,7 +83,10 @@ impl Scenario {
     }
 
     /// Applies one `FIELD=VALUE` override (dotted path, e.g. `numerics.dx_liquid=0.0005`,
-    /// `particles.0.max=(0.01, 0.02, 0)`). Enum wrappers in the path may be omitted.
+    /// `particles.0.max=(0.01, 0.02, 0)`, `boundaries.1.shape=Sphere(centre: (0, 0, 0.1), radius: 0.01)`).
+    /// Enum wrappers and `Some` in the path may be omitted. The value is RON typed by the field it
+    /// replaces (`ron_path`); where RON refuses it, the untyped shorthands still apply (a bare number for
+    /// an optional field, a bare word for a string, `null` for `None`).
     /// The result is not validated yet: callers validate once after all overrides.
     pub fn with_override(&self, spec: &str) -> Result<Scenario, ScenarioError> {
         let err = |problem: String, fix: &str| ScenarioError::Override {
@@ -93,24 +97,38 @@ impl Scenario {
         let (field, value) = spec
             .split_once('=')
             .ok_or_else(|| err("missing `=`".into(), "write FIELD=VALUE, e.g. numerics.dx_liquid=0.0005"))?;
-        let field = field.trim();
-        let value =
-            parse_override_value(value.trim()).map_err(|p| err(p, "give a number, a boolean or a RON value"))?;
+        let (field, text) = (field.trim(), value.trim());
+        if text.parse::<f64>().is_ok_and(|x| !x.is_finite()) {
+            return Err(err(format!("`{text}` is not a finite number"), "give a number, a boolean or a RON value"));
+        }
+        // 1. typed: the value spliced into the scenario's own RON
+        let typed = ron::to_string(self)
+            .map_err(|e| e.to_string())
+            .and_then(|own| ron_path::splice(&own, field, text))
+            .map(|spliced| ron::Options::default().from_str::<Scenario>(&spliced).map_err(|e| e.code.to_string()));
+        let typed_problem = match typed {
+            Ok(Ok(mut sc)) => {
+                sc.base_dir.clone_from(&self.base_dir);
+                return Ok(sc);
+            }
+            Ok(Err(problem)) => Some(problem),
+            Err(_) => None, // a path problem: the untyped route says it in its words
+        };
+        // 2. untyped: numbers, booleans, bare words and RON without variant names, through JSON
+        let value = parse_override_value(text).map_err(|p| err(p, "give a number, a boolean or a RON value"))?;
         let mut tree = serde_json::to_value(self).map_err(|e| err(e.to_string(), "report this as a bug"))?;
         set_path(&mut tree, field).map(|slot| *slot = value).map_err(|p| {
             err(p, "use a dotted path of the scenario schema (README: Scenario format), e.g. numerics.h_over_dx")
         })?;
-        serde_json::from_value(tree).map_err(|e| {
-            let e = e.to_string();
-            // RON's untyped values drop a variant's name (`Box(min: …)` reads as a plain map)
-            let fix = if e.contains("map with a single key") {
-                "a whole enum value (e.g. Box(...), Sphere(...)) cannot be given with --set: set its fields \
-                 (FIELD.min=(…)) where the file has one, or edit the file"
-            } else {
-                "give a value of the field's type"
-            };
-            err(e, fix)
-        })
+        let mut sc: Scenario = serde_json::from_value(tree).map_err(|e| {
+            // the typed route's message names the field's type and variants
+            err(
+                typed_problem.unwrap_or_else(|| e.to_string()),
+                "give a value of the field's type, in RON as in the file",
+            )
+        })?;
+        sc.base_dir.clone_from(&self.base_dir);
+        Ok(sc)
     }
 
     /// Number of spatial dimensions as a kernel enum.
