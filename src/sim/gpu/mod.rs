@@ -232,15 +232,15 @@ fn diverged(step: u64, t: f64, particle: String, reason: String) -> SimError {
     SimError::Diverged { step, t, particle, reason }
 }
 
+/// Size of common.wgsl's `LiquidMove` (position, velocity, a⁰, id: four vec4s; `grid_reorder`).
+const LIQUID_MOVE_BYTES: usize = 64;
+
 /// Whether the pass `entry` is left out for a skeleton held entirely still (`Params::solid_dynamic`
 /// false: every solid particle kinematic, as in the Brinkman channel), as `CpuSolver::evaluate` and
 /// `step_inner` leave its work out: nothing reads the solid's continuity, stress, forces, XSPH velocity,
 /// F or bond breaking there (its particles never move, and `forces_solid`/`forces_xsph_solid` would only
 /// write zero and v, which the buffers hold from the upload). `density_solid` still runs when the
 /// liquid–void attraction (3.4) reads the skeleton's nˡ (a fixed fabric).
-/// Size of grid.wgsl's `LiquidMove` (position, velocity, a⁰, id: four vec4s).
-const LIQUID_MOVE_BYTES: usize = 64;
-
 fn static_skeleton_skips(entry: &str, wicking: bool) -> bool {
     let skipped = [
         passes::SOLID_STRESS.entry,
