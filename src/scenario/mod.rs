@@ -86,7 +86,7 @@ impl Scenario {
     /// `particles.0.max=(0.01, 0.02, 0)`, `boundaries.1.shape=Sphere(centre: (0, 0, 0.1), radius: 0.01)`).
     /// Enum wrappers and `Some` in the path may be omitted. The value is RON typed by the field it
     /// replaces (`ron_path`); where RON refuses it, the untyped shorthands still apply (a bare number for
-    /// an optional field, a bare word for a string, `null` for `None`).
+    /// an optional field, `null` for `None`; text that is not RON at all is taken as a string).
     /// The result is not validated yet: callers validate once after all overrides.
     pub fn with_override(&self, spec: &str) -> Result<Scenario, ScenarioError> {
         let err = |problem: String, fix: &str| ScenarioError::Override {
@@ -114,7 +114,7 @@ impl Scenario {
             Ok(Err(problem)) => Some(problem),
             Err(_) => None, // a path problem: the untyped route says it in its words
         };
-        // 2. untyped: numbers, booleans, bare words and RON without variant names, through JSON
+        // 2. untyped, through JSON: a bare number or null for an `Option`, RON without variant names
         let value = parse_override_value(text).map_err(|p| err(p, "give a number, a boolean or a RON value"))?;
         let mut tree = serde_json::to_value(self).map_err(|e| err(e.to_string(), "report this as a bug"))?;
         set_path(&mut tree, field).map(|slot| *slot = value).map_err(|p| {
