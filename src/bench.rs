@@ -257,16 +257,18 @@ fn timed_keyframe(
     Ok(())
 }
 
-/// Measures `sc` without and with recording (to `file`, removed afterwards), each for `min_wall_s`;
-/// returns the recorded row with its measured overhead.
+/// Measures `sc` without and with recording (to `file`, removed afterwards), each for `min_wall_s`
+/// (the liquid generated in a random order when `shuffled_liquid`); returns the recorded row with its
+/// measured overhead.
 pub fn record_overhead(
     sc: &Scenario,
     backend: BackendKind,
     min_wall_s: f64,
     file: &std::path::Path,
+    shuffled_liquid: bool,
 ) -> Result<(BenchRow, BenchRow), BenchError> {
-    let plain = measure_with(sc, backend, min_wall_s, 3, u64::MAX, None, false)?;
-    let mut rec = measure_with(sc, backend, min_wall_s, 3, u64::MAX, Some(file), false)?;
+    let plain = measure_with(sc, backend, min_wall_s, 3, u64::MAX, None, shuffled_liquid)?;
+    let mut rec = measure_with(sc, backend, min_wall_s, 3, u64::MAX, Some(file), shuffled_liquid)?;
     let _ = std::fs::remove_file(file);
     if let Some(c) = &mut rec.recording {
         c.overhead_measured_pct = 100.0 * (1.0 - rec.ps_per_s / plain.ps_per_s.max(1e-30));

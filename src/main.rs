@@ -724,10 +724,12 @@ fn real_main() -> Result<()> {
                     );
                     let measured = if record {
                         let file = std::env::temp_dir().join(format!("perfuse-bench-{}.pfrec", std::process::id()));
-                        perfuse::bench::record_overhead(sc, b.into(), seconds, &file).map(|(plain, rec)| {
-                            eprint!("{}", perfuse::bench::table(std::slice::from_ref(&plain)));
-                            rec
-                        })
+                        perfuse::bench::record_overhead(sc, b.into(), seconds, &file, shuffle_liquid).map(
+                            |(plain, rec)| {
+                                eprint!("{}", perfuse::bench::table(std::slice::from_ref(&plain)));
+                                rec
+                            },
+                        )
                     } else {
                         perfuse::bench::measure_with(sc, b.into(), seconds, 3, u64::MAX, None, shuffle_liquid)
                     };
