@@ -44,8 +44,18 @@ fn bond_cut(i: u32, j: u32, xi: vec3<f32>, xj: vec3<f32>) -> bool {
     }
     let d = min_image(q - p);
     for (var k = 0u; k < params.switches.w; k++) {
-        let o = objects[k];
-        if (o.blade != 0u && blade_crosses(o, p, d)) {
+        if (objects[k].blade != 0u && blade_crosses(objects[k], p, d)) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// Whether any object is a cutting blade (the CPU's `blades` list is not empty): most scenes have none,
+// and then no bond needs bond_cut's test against every object.
+fn any_blade() -> bool {
+    for (var k = 0u; k < params.switches.w; k++) {
+        if (objects[k].blade != 0u) {
             return true;
         }
     }
@@ -61,13 +71,14 @@ fn fracture_apply(@builtin(global_invocation_id) gid: vec3<u32>) {
     let cap = params.counts.w;
     let xi = solid_pos[i].xyz;
     let n = bond_count[i];
+    let blades = any_blade();
     var keep = 0u;
     for (var k = 0u; k < n; k++) {
         let j = bond_table[i * cap + k];
         let limit2 = bond_limit[i * cap + k];
         let xj = solid_pos[j].xyz;
         let d = min_image(xi - xj);
-        if (dot3(d, d) <= limit2 && !bond_cut(i, j, xi, xj)) {
+        if (dot3(d, d) <= limit2 && !(blades && bond_cut(i, j, xi, xj))) {
             // compact only behind a broken bond: an intact table is not rewritten every step
             if (keep != k) {
                 bond_table[i * cap + keep] = j;

@@ -10,6 +10,7 @@ use super::grid::{CellList, Neighbours, min_image};
 use crate::scenario::{BoundaryObject, Region, ToolKind};
 use crate::sim::params::Params;
 use glam::Vec3;
+use rayon::prelude::*;
 
 /// The axis across which a `blade_cut` scalpel cuts: its box's thinnest axis among the first `dims`
 /// (the blade is the box's mid-plane rectangle across it); `None` for every other object.
@@ -120,28 +121,37 @@ pub fn fracture_apply(p: &Params, s: &mut SolidSet, blades: &[Blade]) -> u64 {
     let dims = p.dim.n();
     let period = p.periodic_len();
     let cap = s.bond_capacity;
-    let mut removed_ends = 0u64;
-    for i in 0..s.x.len() {
-        let n = s.bond_count[i] as usize;
-        let mut keep = 0usize;
-        for k in 0..n {
-            let j = s.bonds[i * cap + k] as usize;
-            let limit2 = s.bond_limit[i * cap + k];
-            if min_image(s.x[i] - s.x[j], period).length_squared() <= limit2
-                && !blades.iter().any(|bl| bond_cut(bl, s.x[i], s.x[j], i < j, period, dims))
-            {
-                s.bonds[i * cap + keep] = j as u32;
-                s.bond_limit[i * cap + keep] = limit2;
-                keep += 1;
-            } else {
-                removed_ends += 1;
-            }
-        }
-        for k in keep..n {
-            s.bonds[i * cap + k] = u32::MAX;
-            s.bond_limit[i * cap + k] = 0.0;
-        }
-        s.bond_count[i] = keep as u32;
+    if cap == 0 {
+        return 0;
     }
+    let x = &s.x;
+    // each particle rewrites only its own row of the table: rows in parallel, as the GPU's threads
+    let removed_ends: u64 = s
+        .bonds
+        .par_chunks_mut(cap)
+        .zip(s.bond_limit.par_chunks_mut(cap))
+        .zip(s.bond_count.par_iter_mut())
+        .enumerate()
+        .with_min_len(super::MIN_PAR_LEN)
+        .map(|(i, ((bonds, limits), count))| {
+            let n = *count as usize;
+            let mut keep = 0usize;
+            for k in 0..n {
+                let j = bonds[k] as usize;
+                let limit2 = limits[k];
+                if min_image(x[i] - x[j], period).length_squared() <= limit2
+                    && !blades.iter().any(|bl| bond_cut(bl, x[i], x[j], i < j, period, dims))
+                {
+                    bonds[keep] = j as u32;
+                    limits[keep] = limit2;
+                    keep += 1;
+                }
+            }
+            bonds[keep..n].fill(u32::MAX);
+            limits[keep..n].fill(0.0);
+            *count = keep as u32;
+            (n - keep) as u64
+        })
+        .sum();
     removed_ends / 2
 }
