@@ -108,8 +108,20 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     liquid_dens[i] = vec4<f32>(rho, n_l, n_s, pr);
 }
 
+// The solid's continuity, fractions and pressure, nˡ summed over the liquid.
 @compute @workgroup_size(64)
 fn density_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    solid_density(gid, true);
+}
+
+// The same with the nˡ of the previous step's evaluation 1 (solid_dens.y): evaluation 0 of a step, on
+// the positions evaluation 1 saw (the corrector moves nothing), so the sum would repeat it bit for bit.
+@compute @workgroup_size(64)
+fn density_solid_kept(@builtin(global_invocation_id) gid: vec3<u32>) {
+    solid_density(gid, false);
+}
+
+fn solid_density(gid: vec3<u32>, sum_liquid: bool) {
     if (gid.x >= params.counts.y) {
         return;
     }
@@ -156,7 +168,9 @@ fn density_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     var n_l = 1.0 - params.n_sat;
-    if ((solid_flags[i] & SOLID_MEMBRANE) == 0u) {
+    if ((solid_flags[i] & SOLID_MEMBRANE) == 0u && !sum_liquid) {
+        n_l = solid_dens[i].y;
+    } else if ((solid_flags[i] & SOLID_MEMBRANE) == 0u) {
         var sum = 0.0;
         for (var k = kb; k < ke; k += kstep) {
             let c = nbr_span(ci, k);

@@ -7,7 +7,8 @@
 // (3.3) and the liquid–void attraction (3.4) (§3.12).
 // Solid (2.48): deviatoric stress over bonds, −nˢ∇p, artificial stress (2.59)–(2.60), artificial
 // viscosity (2.54)–(2.58), boundary contact, friction and attraction reactions, membrane reactions
-// gathered from the liquid (§4.1: a gather, no atomics), g. XSPH (2.69) for both.
+// gathered from the liquid (§4.1: a gather, no atomics), g. XSPH (2.69) for both, in evaluation 0's
+// force passes (forces_liquid_xsph, forces_solid_xsph): the sum walks the neighbours the forces walk.
 #import common
 
 // Monaghan's Π_ij (2.54)–(2.58); zero for separating pairs.
@@ -187,8 +188,22 @@ fn liquid_gravity() -> vec3<f32> {
     return select(vec3<f32>(0.0), params.gravity.xyz, params.gravity.w != 0.0);
 }
 
+// Evaluation 1's liquid forces; evaluation 0's come with the XSPH velocities (forces_liquid_xsph).
 @compute @workgroup_size(64)
 fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    liquid_forces(gid, false);
+}
+
+// The liquid forces and, in the same walk over the liquid, XSPH (2.69): ṽ_i = v_i + ε̃ Σ (m_j/ρ̄_ij)(v_j −
+// v_i)W6 (forces.rs `forces_liquid` with `xsph`).
+@compute @workgroup_size(64)
+fn forces_liquid_xsph(@builtin(global_invocation_id) gid: vec3<u32>) {
+    liquid_forces(gid, true);
+}
+
+// Accelerations of liquid particle gid (cell-ordered dispatch), and with `xsph` its XSPH velocity (a
+// constant at each call: the driver compiles two specialised passes).
+fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     if (gid.x >= params.counts.x) {
         return;
     }
@@ -211,6 +226,7 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let kstep = nbr_step(ci);
     let r2l = kl.r * kl.r;
     var a = vec3<f32>(0.0);
+    var d_xsph = vec3<f32>(0.0);
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
@@ -241,6 +257,9 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if (params.switches.y != 0u) {
                     let pij = artificial_viscosity(vi - vj, xij, r, kl.h, params.c_l, 0.5 * (rho + dj.x));
                     a -= grad * (mj * pij);
+                }
+                if (xsph && params.xsph_l != 0.0) {
+                    d_xsph += (vj - vi) * (mj / (0.5 * (rho + dj.x)) * w_poly6(kl, r));
                 }
             }
         }
@@ -299,16 +318,36 @@ fn forces_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         a -= f / rho;
     }
     liquid_acc[i] = vec4<f32>(a + g, 0.0);
+    if (xsph) {
+        let eps = params.xsph_l;
+        liquid_vel_adv[i] = vec4<f32>(select(vi + d_xsph * eps, vi, eps == 0.0), 0.0);
+    }
 }
 
+// Evaluation 1's solid forces; evaluation 0's come with the XSPH velocities (forces_solid_xsph).
 @compute @workgroup_size(64)
 fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
+    solid_forces(gid, false);
+}
+
+// The solid forces and, in the same walk over the solid, XSPH (2.69) with poly6 of R_s; kinematic
+// particles keep v (forces.rs `forces_solid` with `xsph`).
+@compute @workgroup_size(64)
+fn forces_solid_xsph(@builtin(global_invocation_id) gid: vec3<u32>) {
+    solid_forces(gid, true);
+}
+
+// Accelerations of solid particle gid (cell-ordered dispatch), and with `xsph` its XSPH velocity.
+fn solid_forces(gid: vec3<u32>, xsph: bool) {
     if (gid.x >= params.counts.y) {
         return;
     }
     let i = solid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
     if ((solid_flags[i] & SOLID_KINEMATIC) != 0u) {
         solid_acc[i] = vec4<f32>(0.0);
+        if (xsph) {
+            solid_vel_adv[i] = vec4<f32>(solid_vel[i].xyz, 0.0);
+        }
         return;
     }
     let ks = params.k_solid;
@@ -361,6 +400,7 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let kb = nbr_begin();
     let ke = nbr_end();
     let kstep = nbr_step(ci);
+    var d_xsph = vec3<f32>(0.0);
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
@@ -372,6 +412,8 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
             if (r2 < r2s && j != i) {
                 let r = sqrt(r2);
                 let dj = solid_dens[j];
+                let vj = solid_vel[j].xyz;
+                let mj = solid_pos[j].w;
                 let grad = xij * grad_cubic_factor(ks, r);
                 let pj = dj.w / (dj.x * dj.x);
                 // −n∇p with the pair's mean fraction (antisymmetric: see forces_liquid)
@@ -380,9 +422,12 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
                     let f = w_cubic(ks, r) / params.wc_dx;
                     acc += m3_mul_v(m3_add(art_i, m3_load(solid_tau_art[j].art)), grad) * powi(f, params.as_exp);
                 }
-                let pij = artificial_viscosity(vi - solid_vel[j].xyz, xij, r, ks.h, params.c_s, 0.5 * (rho + dj.x));
+                let pij = artificial_viscosity(vi - vj, xij, r, ks.h, params.c_s, 0.5 * (rho + dj.x));
                 acc -= grad * pij;
-                a += acc * solid_pos[j].w;
+                a += acc * mj;
+                if (xsph && params.xsph_s != 0.0) {
+                    d_xsph += (vj - vi) * (mj / (0.5 * (rho + dj.x)) * w_poly6(ks, r));
+                }
             }
         }
     }
@@ -427,12 +472,18 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     a += wall_contact_friction(contact, vi);
-    // friction reaction (2.17, D-18) and reaction of the liquid–void attraction (3.4): −(m_j/ρ_j) × the
-    // pair term on liquid j (§3.12), in one walk over the liquid within R_×
-    if (params.kbar > 0.0 || params.wicking > 0.0) {
+    // friction reaction (2.17, D-18) and reaction of the liquid–void attraction (3.4) — −(m_j/ρ_j) × the
+    // pair term on liquid j (§3.12) — and on a membrane particle the reaction of the liquid–membrane
+    // boundary forces (§4.1, within R_l), in one walk over the liquid within R_× ≥ R_l (each sum takes its
+    // terms in the order separate walks would)
+    let pair_terms = params.kbar > 0.0 || params.wicking > 0.0;
+    let membrane = (solid_flags[i] & SOLID_MEMBRANE) != 0u;
+    if (pair_terms || membrane) {
         let r2x = kx.r * kx.r;
+        let r2l = kl.r * kl.r;
         var f = vec3<f32>(0.0);
         var fw = vec3<f32>(0.0);
+        var fm = vec3<f32>(0.0);
         for (var k = kb; k < ke; k += kstep) {
             let c = nbr_span(ci, k);
             if (c.x < 0) { continue; }
@@ -451,33 +502,20 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
                     if (params.wicking > 0.0 && r > 0.0) {
                         fw -= xij * (liquid_pos[j].w / dj.x * wicking_pair(kx.h, n_s, di.y, r) / r);
                     }
+                    if (membrane && r2 < r2l) {
+                        let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, liquid_vel[j].xyz, vi4.w, vi, -xij, r, -1.0, 0.0, 1.0, g_l);
+                        fm -= on_j * liquid_pos[j].w;
+                    }
                 }
             }
         }
-        a -= f / rho;
-        a += fw / pi4.w;
-    }
-    // membrane particles take the reaction of the liquid–membrane boundary forces (§4.1)
-    if ((solid_flags[i] & SOLID_MEMBRANE) != 0u) {
-        let r2l = kl.r * kl.r;
-        var f = vec3<f32>(0.0);
-        for (var k = kb; k < ke; k += kstep) {
-            let c = nbr_span(ci, k);
-            if (c.x < 0) { continue; }
-            for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
-                let e = liquid_order[q];
-                let j = e.id;
-                let xji = min_image_wrapped(xi - e.pos);
-                let r2 = dot3(xji, xji);
-                if (r2 < r2l) {
-                    let xjb = -xji;
-                    let dj = liquid_dens[j];
-                    let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, liquid_vel[j].xyz, vi4.w, vi, xjb, sqrt(r2), -1.0, 0.0, 1.0, g_l);
-                    f -= on_j * liquid_pos[j].w;
-                }
-            }
+        if (pair_terms) {
+            a -= f / rho;
+            a += fw / pi4.w;
         }
-        a += f / pi4.w;
+        if (membrane) {
+            a += fm / pi4.w;
+        }
     }
     // ligament spring and dashpot to the anchor X (Scenario::ligaments): −ω²(x − X) − 2ζω v
     if ((solid_flags[i] & SOLID_TETHERED) != 0u) {
@@ -485,74 +523,8 @@ fn forces_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
         a -= d * params.tether_omega2 + vi * params.tether_damping;
     }
     solid_acc[i] = vec4<f32>(a + params.gravity.xyz, 0.0);
-}
-
-// XSPH (2.69) of the liquid: ṽ_i = v_i + ε̃ Σ (m_j/ρ̄_ij)(v_j − v_i)W6.
-@compute @workgroup_size(64)
-fn forces_xsph_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= params.counts.x) {
-        return;
+    if (xsph) {
+        let eps = params.xsph_s;
+        solid_vel_adv[i] = vec4<f32>(select(vi + d_xsph * eps, vi, eps == 0.0), 0.0);
     }
-    let i = liquid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
-    let vi = liquid_vel[i].xyz;
-    let eps = params.xsph_l;
-    if (eps == 0.0) {
-        liquid_vel_adv[i] = vec4<f32>(vi, 0.0);
-        return;
-    }
-    let k = params.k_liquid;
-    let xi = liquid_pos[i].xyz;
-    let rho_i = liquid_dens[i].x;
-    let ci = cell_coords(xi);
-    let r2k = k.r * k.r;
-    var d = vec3<f32>(0.0);
-    for (var kk = nbr_begin(); kk < nbr_end(); kk += nbr_step(ci)) {
-        let c = nbr_span(ci, kk);
-        if (c.x < 0) { continue; }
-        for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
-            let e = liquid_order[q];
-            let j = e.id;
-            let xij = min_image_wrapped(xi - e.pos);
-            let r2 = dot3(xij, xij);
-            if (r2 < r2k && j != i) {
-                d += (liquid_vel[j].xyz - vi) * (liquid_pos[j].w / (0.5 * (rho_i + liquid_dens[j].x)) * w_poly6(k, sqrt(r2)));
-            }
-        }
-    }
-    liquid_vel_adv[i] = vec4<f32>(vi + d * eps, 0.0);
-}
-
-// XSPH (2.69) of the solid (poly6 with R_s); kinematic particles keep v.
-@compute @workgroup_size(64)
-fn forces_xsph_solid(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= params.counts.y) {
-        return;
-    }
-    let i = solid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
-    let vi = solid_vel[i].xyz;
-    let eps = params.xsph_s;
-    if (eps == 0.0 || (solid_flags[i] & SOLID_KINEMATIC) != 0u) {
-        solid_vel_adv[i] = vec4<f32>(vi, 0.0);
-        return;
-    }
-    let k = params.k_solid;
-    let xi = solid_pos[i].xyz;
-    let rho_i = solid_dens[i].x;
-    let ci = cell_coords(xi);
-    let r2k = k.r * k.r;
-    var d = vec3<f32>(0.0);
-    for (var kk = nbr_begin(); kk < nbr_end(); kk += nbr_step(ci)) {
-        let c = nbr_span(ci, kk);
-        if (c.x < 0) { continue; }
-        for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
-            let e = solid_order[q];
-            let j = e.id;
-            let xij = min_image_wrapped(xi - e.pos);
-            let r2 = dot3(xij, xij);
-            if (r2 < r2k && j != i) {
-                d += (solid_vel[j].xyz - vi) * (solid_pos[j].w / (0.5 * (rho_i + solid_dens[j].x)) * w_poly6(k, sqrt(r2)));
-            }
-        }
-    }
-    solid_vel_adv[i] = vec4<f32>(vi + d * eps, 0.0);
 }

@@ -203,17 +203,18 @@ fn advance_is_deterministic_and_independent_of_batching() {
 }
 
 /// Evaluation 0 of every step but a batch's first after a host-side change reuses the liquid's ρ, nˡ,
-/// nˢ, p of the previous step's evaluation 1 (`liquid_density_fresh`): after batches of a falling,
-/// deforming perfused block and after single steps they are bit for bit what a fresh `density_liquid`
-/// gives, and the state equals the CPU's (which reuses them the same way) within the tolerances of
-/// `advance_matches`.
+/// nˢ, p and the solid's nˡ of the previous step's evaluation 1 (`liquid_density_fresh`,
+/// `density_solid_kept`): after batches of a falling, deforming perfused block and after single steps
+/// they are bit for bit what a fresh `density_liquid` / `density_solid` gives, and the state equals the
+/// CPU's (which reuses them the same way) within the tolerances of `advance_matches`.
 #[test]
 fn reused_liquid_densities_equal_a_fresh_pass() {
     use perfuse::sim::gpu::bindings::Slot;
-    use perfuse::sim::gpu::passes::{DENSITY_LIQUID, Stage};
+    use perfuse::sim::gpu::passes::{DENSITY_LIQUID, DENSITY_SOLID, Stage};
     gpu_test("reused_liquid_densities_equal_a_fresh_pass", |ctx| {
         let (mut cpu, mut gpu) = solvers(ctx, &perfused_block(), |_| {});
         let n = gpu.read_state().expect("state").liquid.len();
+        let ns = gpu.read_state().expect("state").solid.len();
         for (round, steps) in [(0, 40u64), (1, 1), (2, 25)] {
             if steps == 1 {
                 gpu.step().expect("GPU step");
@@ -225,6 +226,11 @@ fn reused_liquid_densities_equal_a_fresh_pass() {
             }
             assert!(gpu.reuses_liquid_density(), "round {round}: the next step would recompute them");
             let kept: Vec<[u32; 4]> = gpu.read_slot(Slot::LiquidDens, n).expect("read liquid_dens");
+            let kept_s: Vec<[u32; 4]> = gpu.read_slot(Slot::SolidDens, ns).expect("read solid_dens");
+            gpu.run_stages(&[Stage::Pass(DENSITY_SOLID)]).expect("fresh density_solid");
+            let fresh_s: Vec<[u32; 4]> = gpu.read_slot(Slot::SolidDens, ns).expect("read solid_dens");
+            let differ = kept_s.iter().zip(&fresh_s).filter(|(a, b)| a[1] != b[1]).count();
+            assert_eq!(differ, 0, "round {round}: {differ} of {ns} solid particles' nˡ differ from a fresh pass");
             gpu.run_stages(&[Stage::Pass(DENSITY_LIQUID)]).expect("fresh density_liquid");
             let fresh: Vec<[u32; 4]> = gpu.read_slot(Slot::LiquidDens, n).expect("read liquid_dens");
             let differ = kept.iter().zip(&fresh).filter(|(a, b)| a != b).count();

@@ -68,6 +68,10 @@ fn max_vec_diff(a: &[Vec3], b: &[Vec3]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (*x - *y).length()).fold(0.0, f32::max)
 }
 
+fn bits3(a: &[Vec3]) -> Vec<[u32; 3]> {
+    a.iter().map(|v| v.to_array().map(f32::to_bits)).collect()
+}
+
 fn max_len(a: &[Vec3]) -> f32 {
     a.iter().map(|x| x.length()).fold(0.0, f32::max)
 }
@@ -85,7 +89,7 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
         let p = &cpu.params;
         (
             density::density_liquid(p, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb),
-            density::density_solid(p, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb),
+            density::density_solid(p, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, true),
         )
     };
     let l = &mut cpu.st.liquid;
@@ -111,11 +115,14 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
             contacts: &cpu.contacts,
             gravity_liquid: true,
         };
-        let a_l = forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb);
-        let a_s = forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb);
-        let vx_l = forces::forces_xsph_liquid(&cpu.params, &cpu.st.liquid, &nb);
-        let vx_s = forces::forces_xsph_solid(&cpu.params, &cpu.st.solid, &nb);
-        (a_l, a_s, vx_l, vx_s)
+        let (a_l, vx_l) = forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, true);
+        let (a_s, vx_s) = forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, true);
+        // evaluation 1's passes (no XSPH) give the same accelerations bit for bit
+        let (a_l1, none_l) = forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, false);
+        let (a_s1, none_s) = forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false);
+        assert!(none_l.is_none() && none_s.is_none());
+        assert!(bits3(&a_l1) == bits3(&a_l) && bits3(&a_s1) == bits3(&a_s), "forces differ with and without XSPH");
+        (a_l, a_s, vx_l.expect("XSPH velocities"), vx_s.expect("XSPH velocities"))
     };
     cpu.st.liquid.a = a_l;
     cpu.st.solid.a = a_s;
@@ -331,14 +338,17 @@ fn tension_limit_matches_cpu() {
 
 /// solid_stress (τ, R), forces_liquid / forces_solid (2.48), (2.50) and XSPH (2.69) on the same
 /// inputs. Tolerances: τ, R relative 1e-4 of their largest entry; accelerations 1e-4 of max |a|;
-/// XSPH velocities 1e-5 of max |v| (plus 1e-9 m/s).
+/// XSPH velocities 1e-5 of max |v| (plus 1e-9 m/s). Evaluation 0's passes, which also give the XSPH
+/// velocities, give evaluation 1's accelerations bit for bit on both back-ends.
 #[test]
 fn stress_and_force_passes_match_cpu() {
     gpu_test("stress_and_force_passes_match_cpu", |ctx| {
         let mut cpu = cpu_after(40);
         let mut gpu = gpu_from(ctx, &cpu);
         gpu.run_stages(passes::EVALUATE).unwrap();
-        gpu.run_stages(&[Stage::Pass(passes::FORCES_XSPH_LIQUID), Stage::Pass(passes::FORCES_XSPH_SOLID)]).unwrap();
+        let al1: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidAcc, cpu.st.liquid.x.len()).unwrap();
+        let as1: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, cpu.st.solid.x.len()).unwrap();
+        gpu.run_stages(&[Stage::Pass(passes::FORCES_LIQUID_XSPH), Stage::Pass(passes::FORCES_SOLID_XSPH)]).unwrap();
         cpu_evaluate(&mut cpu);
         let (l, s) = (&cpu.st.liquid, &cpu.st.solid);
         let st: Vec<perfuse::sim::gpu::gpu_types::StressGpu> = gpu.read_slot(Slot::SolidStress, s.x.len()).unwrap();
@@ -361,6 +371,10 @@ fn stress_and_force_passes_match_cpu() {
         let vl: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidVelAdv, l.x.len()).unwrap();
         let vs: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidVelAdv, s.x.len()).unwrap();
         let v3 = |v: &[[f32; 4]]| v.iter().map(xyz).collect::<Vec<Vec3>>();
+        assert!(
+            bits3(&v3(&al1)) == bits3(&v3(&al)) && bits3(&v3(&as1)) == bits3(&v3(&as_)),
+            "GPU forces differ with XSPH"
+        );
         let d_al = max_vec_diff(&v3(&al), &l.a);
         let d_as = max_vec_diff(&v3(&as_), &s.a);
         let d_vl = max_vec_diff(&v3(&vl), &l.vx);
@@ -579,8 +593,8 @@ fn surface_tension_forces_match_cpu() {
                 gravity_liquid: true,
             };
             (
-                forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb),
-                forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb),
+                forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, false).0,
+                forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false).0,
             )
         };
         let (a_l0, a_s0) = without(&|p| {
@@ -636,7 +650,7 @@ fn wall_friction_matches_cpu() {
                 contacts: &contacts,
                 gravity_liquid: true,
             };
-            forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb)
+            forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false).0
         };
         let part = max_vec_diff(&spec_contact, &s.a);
         // The stick regime returns −v_t/Δt_up: velocity rounding (~1e-6 of max |v| after the

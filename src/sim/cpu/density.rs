@@ -59,13 +59,16 @@ pub fn density_liquid(
     (rho, n_s, pr)
 }
 
-/// Returns (dρ/dt, nˡ, nˢ, p) for every solid particle.
+/// Returns (dρ/dt, nˡ, nˢ, p) for every solid particle; nˡ summed over the liquid (`density_solid`) or,
+/// without `sum_liquid`, the one `s` holds (`density_solid_kept`: evaluation 0 of a step keeps the nˡ of
+/// the previous step's evaluation 1, taken on the same positions).
 pub fn density_solid(
     p: &Params,
     s: &SolidSet,
     l: &LiquidSet,
     b: &BoundarySet,
     nb: &Nbrs,
+    sum_liquid: bool,
 ) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<f32>) {
     let ks = &p.k_solid;
     let kx = &p.k_cross;
@@ -88,6 +91,8 @@ pub fn density_solid(
             });
             let n_l = if s.flags[i] & SolidFlags::MEMBRANE != 0 {
                 n_l_membrane
+            } else if !sum_liquid {
+                s.n_l[i]
             } else {
                 let mut sum = 0.0f32;
                 nb.liquid.for_each(xi, kx.r, |j, _, r| sum += l.m[j] * kx.w_poly6(r));

@@ -5,7 +5,8 @@
 //! when enabled the surface tension (3.3) and the liquid–void attraction (3.4) (§3.12).
 //! Solid (2.48): deviatoric stress over bonds, −nˢ∇p, artificial stress (2.59)–(2.60), artificial
 //! viscosity (2.54)–(2.58) over current neighbours, boundary contact, friction and attraction reactions,
-//! membrane reactions gathered from the liquid (§4.1: no atomics), g. XSPH (2.69) for both.
+//! membrane reactions gathered from the liquid (§4.1: no atomics), g. XSPH (2.69) for both, in
+//! evaluation 0's force passes (`xsph`): its sum walks the neighbours the forces walk.
 
 use super::{BoundarySet, LiquidSet, Nbrs, ObjectContact, SolidSet};
 use crate::scenario::SolidFlags;
@@ -383,12 +384,22 @@ pub fn cohesion_pair(s: f32, radius: f32, r: f32) -> f32 {
     s * (std::f32::consts::PI * r / (2.0 * radius)).cos()
 }
 
-pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet, nb: &Nbrs) -> Vec<Vec3> {
+/// Accelerations of the liquid (twin of `forces_liquid` and, with `xsph`, `forces_liquid_xsph`), and
+/// with `xsph` the XSPH advection velocities (2.69) ṽ_i = v_i + ε̃ Σ (m_j/ρ̄_ij)(v_j − v_i)W6, summed in
+/// the same walk over the liquid (R_l).
+pub fn forces_liquid(
+    c: &ForceCtx,
+    l: &LiquidSet,
+    s: &SolidSet,
+    b: &BoundarySet,
+    nb: &Nbrs,
+    xsph: bool,
+) -> (Vec<Vec3>, Option<Vec<Vec3>>) {
     let p = c.p;
     let kl = &p.k_liquid;
     let kx = &p.k_cross;
     let g = if c.gravity_liquid { c.gravity } else { Vec3::ZERO };
-    (0..l.x.len())
+    let (a, vx): (Vec<Vec3>, Vec<Vec3>) = (0..l.x.len())
         .into_par_iter()
         .with_min_len(super::MIN_PAR_LEN)
         .map(|i| {
@@ -396,6 +407,7 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
             let pi = pr / (rho * rho);
             let inv_m = 1.0 / l.m[i];
             let mut a = Vec3::ZERO;
+            let mut d_xsph = Vec3::ZERO;
             nb.liquid.for_each(xi, kl.r, |j, xij, r| {
                 if j == i {
                     return;
@@ -427,6 +439,9 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
                         p.av_gamma,
                     );
                     a -= grad * (l.m[j] * pij);
+                }
+                if xsph && p.xsph_l != 0.0 {
+                    d_xsph += (l.v[j] - vi) * (l.m[j] / (0.5 * (rho + l.rho[j])) * kl.w_poly6(r));
                 }
             });
             nb.boundary.for_each(xi, kl.r, |j, xij, r| {
@@ -469,12 +484,28 @@ pub fn forces_liquid(c: &ForceCtx, l: &LiquidSet, s: &SolidSet, b: &BoundarySet,
             if p.kbar > 0.0 {
                 a -= f / rho;
             }
-            a + g
+            (a + g, xsph_velocity(vi, d_xsph, p.xsph_l))
         })
-        .collect()
+        .unzip();
+    (a, xsph.then_some(vx))
 }
 
-pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, nb: &Nbrs) -> Vec<Vec3> {
+/// ṽ = v + ε̃ d of XSPH (2.69) (v itself when ε̃ = 0).
+fn xsph_velocity(v: Vec3, d: Vec3, eps: f32) -> Vec3 {
+    if eps == 0.0 { v } else { v + d * eps }
+}
+
+/// Accelerations of the solid (twin of `forces_solid` and, with `xsph`, `forces_solid_xsph`), and with
+/// `xsph` the XSPH advection velocities (2.69) with poly6 of R_s, summed in the same walk over the solid;
+/// kinematic particles keep v.
+pub fn forces_solid(
+    c: &ForceCtx,
+    s: &SolidSet,
+    l: &LiquidSet,
+    b: &BoundarySet,
+    nb: &Nbrs,
+    xsph: bool,
+) -> (Vec<Vec3>, Option<Vec<Vec3>>) {
     let p = c.p;
     let ks = &p.k_solid;
     let kl = &p.k_liquid;
@@ -486,12 +517,12 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
     let dt_upper = p.dt_upper();
     let dims = p.dim.n();
     let hg = if s.hg_fit.len() == s.x.len() { p.hourglass } else { 0.0 };
-    (0..s.x.len())
+    let (a, vx): (Vec<Vec3>, Vec<Vec3>) = (0..s.x.len())
         .into_par_iter()
         .with_min_len(super::MIN_PAR_LEN)
         .map(|i| {
             if s.flags[i] & SolidFlags::KINEMATIC != 0 {
-                return Vec3::ZERO;
+                return (Vec3::ZERO, s.v[i]);
             }
             let (xi, vi, rho, pr, n_s) = (s.x[i], s.v[i], s.rho[i], s.p[i], s.n_s[i]);
             let inv2 = 1.0 / (rho * rho);
@@ -517,6 +548,7 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
             }
             // Isotropic pressure, artificial stress and artificial viscosity over current neighbours.
             let pi = pr * inv2;
+            let mut d_xsph = Vec3::ZERO;
             nb.solid.for_each(xi, support, |j, xij, r| {
                 if j == i {
                     return;
@@ -542,6 +574,9 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                 );
                 acc -= grad * pij;
                 a += acc * s.m[j];
+                if xsph && p.xsph_s != 0.0 {
+                    d_xsph += (s.v[j] - vi) * (s.m[j] / (0.5 * (rho + s.rho[j])) * ks.w_poly6(r));
+                }
             });
             // Boundary contact (mirror pressure, SPEC §4.1) and artificial viscosity against walls; an
             // object with Coulomb contact damps only the normal relative velocity and adds Coulomb
@@ -570,11 +605,15 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                 }
             });
             a += contact.friction(vi, dt_upper);
-            // Friction reaction (2.17, D-18) and reaction of the liquid–void attraction (3.4):
-            // −(m_j/ρ_j) × the pair term on liquid j (§3.12), in one walk over the liquid within R_×.
-            if p.kbar > 0.0 || p.wicking > 0.0 {
-                let mut f = Vec3::ZERO;
-                let mut fw = Vec3::ZERO;
+            // Friction reaction (2.17, D-18) and reaction of the liquid–void attraction (3.4) —
+            // −(m_j/ρ_j) × the pair term on liquid j (§3.12) — and on a membrane particle the reaction of
+            // the liquid–membrane boundary forces (§4.1, within R_l), in one walk over the liquid within
+            // R_× ≥ R_l (each sum takes its terms in the order separate walks would).
+            let pair_terms = p.kbar > 0.0 || p.wicking > 0.0;
+            let membrane = s.flags[i] & SolidFlags::MEMBRANE != 0;
+            if pair_terms || membrane {
+                let r2l = kl.r * kl.r;
+                let (mut f, mut fw, mut fm) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
                 nb.liquid.for_each(xi, kx.r, |j, xij, r| {
                     if p.kbar > 0.0 {
                         let k = friction_coefficient(p.kbar, n_s, l.n_s[j]);
@@ -583,83 +622,40 @@ pub fn forces_solid(c: &ForceCtx, s: &SolidSet, l: &LiquidSet, b: &BoundarySet, 
                     if p.wicking > 0.0 && r > 0.0 {
                         fw -= xij * (l.m[j] / l.rho[j] * wicking_pair(p.wicking, kx.h, n_s, s.n_l[i], r) / r);
                     }
+                    if membrane && xij.length_squared() < r2l {
+                        let xjb = -xij;
+                        let on_j = liquid_from_boundary(
+                            p,
+                            l.rho[j],
+                            l.p[j],
+                            l.n_l[j],
+                            l.v[j],
+                            s.m_bl[i],
+                            vi,
+                            xjb,
+                            r,
+                            ObjectContact::MIRROR,
+                            1.0,
+                            g_l,
+                        );
+                        fm -= on_j * l.m[j];
+                    }
                 });
-                a -= f / rho;
-                a += fw / s.m[i];
-            }
-            // Membrane particles take the reaction of the liquid–membrane boundary forces (§4.1).
-            if s.flags[i] & SolidFlags::MEMBRANE != 0 {
-                let mut f = Vec3::ZERO;
-                nb.liquid.for_each(xi, kl.r, |j, xji, r| {
-                    let xjb = -xji;
-                    let on_j = liquid_from_boundary(
-                        p,
-                        l.rho[j],
-                        l.p[j],
-                        l.n_l[j],
-                        l.v[j],
-                        s.m_bl[i],
-                        vi,
-                        xjb,
-                        r,
-                        ObjectContact::MIRROR,
-                        1.0,
-                        g_l,
-                    );
-                    f -= on_j * l.m[j];
-                });
-                a += f / s.m[i];
+                if pair_terms {
+                    a -= f / rho;
+                    a += fw / s.m[i];
+                }
+                if membrane {
+                    a += fm / s.m[i];
+                }
             }
             // Ligament spring and dashpot to the anchor X (`Scenario::ligaments`): −ω²(x − X) − 2ζω v.
             if s.flags[i] & SolidFlags::TETHERED != 0 {
                 let d = super::grid::min_image(xi - s.x_ref[i], period);
                 a -= d * p.tether_omega2 + vi * p.tether_damping;
             }
-            a + c.gravity
+            (a + c.gravity, xsph_velocity(vi, d_xsph, p.xsph_s))
         })
-        .collect()
-}
-
-/// XSPH advection velocity (2.69) of the liquid: ṽ_i = v_i + ε̃ Σ (m_j/ρ̄_ij)(v_j − v_i)W6.
-pub fn forces_xsph_liquid(p: &Params, l: &LiquidSet, nb: &Nbrs) -> Vec<Vec3> {
-    let k = &p.k_liquid;
-    let eps = p.xsph_l;
-    (0..l.x.len())
-        .into_par_iter()
-        .with_min_len(super::MIN_PAR_LEN)
-        .map(|i| {
-            if eps == 0.0 {
-                return l.v[i];
-            }
-            let mut d = Vec3::ZERO;
-            nb.liquid.for_each(l.x[i], k.r, |j, _, r| {
-                if j != i {
-                    d += (l.v[j] - l.v[i]) * (l.m[j] / (0.5 * (l.rho[i] + l.rho[j])) * k.w_poly6(r));
-                }
-            });
-            l.v[i] + d * eps
-        })
-        .collect()
-}
-
-/// XSPH advection velocity (2.69) of the solid (poly6 with R_s); kinematic particles keep v.
-pub fn forces_xsph_solid(p: &Params, s: &SolidSet, nb: &Nbrs) -> Vec<Vec3> {
-    let k = &p.k_solid;
-    let eps = p.xsph_s;
-    (0..s.x.len())
-        .into_par_iter()
-        .with_min_len(super::MIN_PAR_LEN)
-        .map(|i| {
-            if eps == 0.0 || s.flags[i] & SolidFlags::KINEMATIC != 0 {
-                return s.v[i];
-            }
-            let mut d = Vec3::ZERO;
-            nb.solid.for_each(s.x[i], k.r, |j, _, r| {
-                if j != i {
-                    d += (s.v[j] - s.v[i]) * (s.m[j] / (0.5 * (s.rho[i] + s.rho[j])) * k.w_poly6(r));
-                }
-            });
-            s.v[i] + d * eps
-        })
-        .collect()
+        .unzip();
+    (a, xsph.then_some(vx))
 }

@@ -229,6 +229,9 @@ pub struct CpuSolver {
     /// previous step's evaluation 1 still exact and reuses them (as the GPU does: its
     /// `liquid_density_fresh`).
     liquid_density_generation: Option<u64>,
+    /// The grid generation whose positions the solid's nˡ (its sum over the liquid) was taken on: the
+    /// same reuse for `density_solid_kept`.
+    solid_n_l_generation: Option<u64>,
 }
 
 impl CpuSolver {
@@ -317,6 +320,7 @@ impl CpuSolver {
             timers: PassTimers::default(),
             grid_generation: 0,
             liquid_density_generation: None,
+            solid_n_l_generation: None,
             pool,
             geoms: shapes.clone(),
             beds: crate::sim::bed::BedTable::build(&params, &g.objects),
@@ -446,8 +450,10 @@ impl CpuSolver {
         // A skeleton held entirely still (Brinkman) needs no continuity, stress, F, forces or fracture:
         // nothing reads them (its ρ is not integrated, and nˢ = ρ/ρ₀ stays as initialised) — unless the
         // liquid–void attraction (3.4) reads its nˡ (a fixed fabric).
+        // the solid's nˡ, a sum over the liquid, is kept alike (`density_solid_kept`)
+        let sum_liquid = self.solid_n_l_generation != Some(self.grid_generation);
         let solid_pass = (p.solid_dynamic || p.wicking > 0.0)
-            .then(|| density::density_solid(p, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb));
+            .then(|| density::density_solid(p, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb, sum_liquid));
         if let Some((rho_l, n_s_l, p_l)) = liquid_pass {
             let l = &mut self.st.liquid;
             l.n_l = rho_l.iter().map(|r| r / p.rho0_l).collect();
@@ -463,6 +469,7 @@ impl CpuSolver {
             s.n_l = n_l_s;
             s.n_s = n_s_s;
             s.p = p_s;
+            self.solid_n_l_generation = Some(self.grid_generation);
             if self.params.solid_dynamic {
                 solid::solid_stress(&self.params, &mut self.st.solid);
                 if self.params.hourglass > 0.0 {
@@ -485,21 +492,19 @@ impl CpuSolver {
             contacts: &contacts,
             gravity_liquid: !(self.st.damping > 0.0 && self.st.damping_solid_gravity_only),
         };
-        let a_l = forces::forces_liquid(&ctx, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb);
-        let a_s = if p.solid_dynamic {
-            forces::forces_solid(&ctx, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb)
+        let (a_l, vx_l) =
+            forces::forces_liquid(&ctx, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb, with_xsph);
+        let (a_s, vx_s) = if p.solid_dynamic {
+            forces::forces_solid(&ctx, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb, with_xsph)
         } else {
-            vec![Vec3::ZERO; self.st.solid.x.len()]
+            (vec![Vec3::ZERO; self.st.solid.x.len()], None)
         };
+        if let Some(vx) = vx_l {
+            self.st.liquid.vx = vx;
+        }
         if with_xsph {
-            let vx_l = forces::forces_xsph_liquid(p, &self.st.liquid, &nb);
-            let vx_s = if p.solid_dynamic {
-                forces::forces_xsph_solid(p, &self.st.solid, &nb)
-            } else {
-                self.st.solid.v.clone()
-            };
-            self.st.liquid.vx = vx_l;
-            self.st.solid.vx = vx_s;
+            // a skeleton held still keeps v
+            self.st.solid.vx = vx_s.unwrap_or_else(|| self.st.solid.v.clone());
         }
         self.st.liquid.a = a_l;
         self.st.solid.a = a_s;
@@ -925,9 +930,10 @@ mod tests {
         assert!(total.length() <= 1e-4 * scale, "Σma = {total:?}, Σ|ma| = {scale}");
     }
 
-    /// Evaluation 0 reuses the liquid's density sums of the previous step's evaluation 1: after every
-    /// step of a falling, deforming perfused block they are bit for bit what a fresh pass gives, and the
-    /// reuse does happen (no other pass moved particles in between); a new grid forces a fresh pass.
+    /// Evaluation 0 reuses the liquid's density sums and the solid's nˡ of the previous step's
+    /// evaluation 1: after every step of a falling, deforming perfused block they are bit for bit what a
+    /// fresh pass gives, and the reuse does happen (no other pass moved particles in between); a new
+    /// grid forces a fresh pass.
     #[test]
     fn reused_liquid_densities_equal_a_fresh_pass() {
         let mut s = block(
@@ -948,10 +954,16 @@ mod tests {
             assert_eq!(bits(&rho), bits(&s.st.liquid.rho), "ρ at step {}", s.st.steps);
             assert_eq!(bits(&n_s), bits(&s.st.liquid.n_s), "nˢ at step {}", s.st.steps);
             assert_eq!(bits(&p), bits(&s.st.liquid.p), "p at step {}", s.st.steps);
+            // the solid's nˡ (density_solid_kept) likewise
+            assert_eq!(s.solid_n_l_generation, Some(s.grid_generation), "step {}", s.st.steps);
+            let (_, n_l_s, _, _) =
+                density::density_solid(&s.params, &s.st.solid, &s.st.liquid, &s.st.boundary, &nb, true);
+            assert_eq!(bits(&n_l_s), bits(&s.st.solid.n_l), "solid nˡ at step {}", s.st.steps);
         }
         assert!(s.st.liquid.v.iter().any(|v| v.length() > 0.0), "the block moved");
         s.build_grids();
         assert_ne!(s.liquid_density_generation, Some(s.grid_generation));
+        assert_ne!(s.solid_n_l_generation, Some(s.grid_generation));
     }
 
     /// `grid_reorder` is a renumbering: a perfused block whose liquid starts in reversed storage order

@@ -83,11 +83,12 @@ pub struct GpuSolver {
     batches: u64,
     /// Host time spent pushing and popping the per-batch error scopes [s] (`error_scope_cost`).
     scope_host_s: f64,
-    /// Whether the liquid's ρ, nˡ, nˢ and p on the device are those of the current positions: true
-    /// after a batch (its last step's evaluation 1 summed them, and the corrector and fracture move
-    /// nothing), false after anything the host runs or writes between batches. The first step of a
-    /// batch then skips `density_liquid` in evaluation 0, as every later step of a batch does — the
-    /// CPU's reuse of its evaluation-1 sums (`CpuSolver::liquid_density_generation`).
+    /// Whether the liquid's ρ, nˡ, nˢ and p and the solid's nˡ on the device are those of the current
+    /// positions: true after a batch (its last step's evaluation 1 summed them, and the corrector and
+    /// fracture move nothing), false after anything the host runs or writes between batches. The first
+    /// step of a batch then skips `density_liquid` and runs `density_solid_kept` in evaluation 0, as
+    /// every later step of a batch does — the CPU's reuse of its evaluation-1 sums
+    /// (`CpuSolver::liquid_density_generation`, `solid_n_l_generation`).
     liquid_density_fresh: bool,
     counts: Counts,
     cells: u32,
@@ -238,7 +239,7 @@ const LIQUID_MOVE_BYTES: usize = 64;
 /// Whether the pass `entry` is left out for a skeleton held entirely still (`Params::solid_dynamic`
 /// false: every solid particle kinematic, as in the Brinkman channel), as `CpuSolver::evaluate` and
 /// `step_inner` leave its work out: nothing reads the solid's continuity, stress, forces, XSPH velocity,
-/// F or bond breaking there (its particles never move, and `forces_solid`/`forces_xsph_solid` would only
+/// F or bond breaking there (its particles never move, and `forces_solid`/`forces_solid_xsph` would only
 /// write zero and v, which the buffers hold from the upload). `density_solid` still runs when the
 /// liquid–void attraction (3.4) reads the skeleton's nˡ (a fixed fabric).
 fn static_skeleton_skips(entry: &str, wicking: bool) -> bool {
@@ -246,11 +247,12 @@ fn static_skeleton_skips(entry: &str, wicking: bool) -> bool {
         passes::SOLID_STRESS.entry,
         passes::SOLID_FIT.entry,
         passes::FORCES_SOLID.entry,
-        passes::FORCES_XSPH_SOLID.entry,
+        passes::FORCES_SOLID_XSPH.entry,
         passes::SOLID_DEF_GRAD.entry,
         passes::FRACTURE_APPLY.entry,
     ];
-    skipped.contains(&entry) || (entry == passes::DENSITY_SOLID.entry && !wicking)
+    let density_solid = [passes::DENSITY_SOLID.entry, passes::DENSITY_SOLID_KEPT.entry];
+    skipped.contains(&entry) || (density_solid.contains(&entry) && !wicking)
 }
 
 impl GpuSolver {
@@ -665,12 +667,19 @@ impl GpuSolver {
                 }
             }
         };
+        // evaluation 0 on the positions of the last evaluation 1: the liquid's densities and the solid's
+        // nˡ are still those sums (`liquid_density_fresh`)
         let first: Vec<Stage> = passes::STEP_FIRST
             .iter()
             .filter(|st| {
                 !(reuse_liquid_density && matches!(st, Stage::Pass(spec) if spec.entry == passes::DENSITY_LIQUID.entry))
             })
-            .copied()
+            .map(|st| match st {
+                Stage::Pass(spec) if reuse_liquid_density && spec.entry == passes::DENSITY_SOLID.entry => {
+                    Stage::Pass(passes::DENSITY_SOLID_KEPT)
+                }
+                other => *other,
+            })
             .collect();
         push(&first, &mut out);
         out.push(Item::Dispatch(passes::BATCH_MOTION, None, Mode::Direct));

@@ -86,28 +86,27 @@ pub const DENSITY_LIQUID: PassSpec = pass(
     ],
     Dispatch::Liquid,
 );
-pub const DENSITY_SOLID: PassSpec = pass(
-    "density_solid",
-    "density",
-    &[
-        Params,
-        LiquidPos,
-        SolidPos,
-        SolidVel,
-        SolidDens,
-        SolidDrho,
-        SolidFlags,
-        BoundaryPos,
-        BoundaryVel,
-        NBR_ALL[0],
-        NBR_ALL[1],
-        NBR_ALL[2],
-        NBR_ALL[3],
-        NBR_ALL[4],
-        NBR_ALL[5],
-    ],
-    Dispatch::Solid,
-);
+const DENSITY_SOLID_SLOTS: &[Slot] = &[
+    Params,
+    LiquidPos,
+    SolidPos,
+    SolidVel,
+    SolidDens,
+    SolidDrho,
+    SolidFlags,
+    BoundaryPos,
+    BoundaryVel,
+    NBR_ALL[0],
+    NBR_ALL[1],
+    NBR_ALL[2],
+    NBR_ALL[3],
+    NBR_ALL[4],
+    NBR_ALL[5],
+];
+pub const DENSITY_SOLID: PassSpec = pass("density_solid", "density", DENSITY_SOLID_SLOTS, Dispatch::Solid);
+/// `density_solid` with the nˡ of the previous step's evaluation 1: evaluation 0 where the liquid's
+/// densities are kept (`GpuSolver::step_items`).
+pub const DENSITY_SOLID_KEPT: PassSpec = pass("density_solid_kept", "density", DENSITY_SOLID_SLOTS, Dispatch::Solid);
 pub const SOLID_STRESS: PassSpec =
     pass("solid_stress", "solid", &[Params, SolidDefGrad, SolidDens, SolidStress, SolidFlags], Dispatch::Solid);
 /// The best affine fit of each particle's bonds for the hourglass control (a no-op when it is off).
@@ -123,75 +122,62 @@ pub const SOLID_DEF_GRAD: PassSpec = pass(
     &[Params, SolidPos, SolidDisp, SolidDens, SolidDefGrad, BondTable, BondCount],
     Dispatch::Solid,
 );
-pub const FORCES_LIQUID: PassSpec = pass(
-    "forces_liquid",
-    "forces",
-    &[
-        Params,
-        Objects,
-        LiquidPos,
-        LiquidVel,
-        LiquidDens,
-        LiquidAcc,
-        SolidPos,
-        SolidVel,
-        SolidDens,
-        SolidFlags,
-        BoundaryPos,
-        BoundaryVel,
-        BoundaryPos0,
-        NBR_ALL[0],
-        NBR_ALL[1],
-        NBR_ALL[2],
-        NBR_ALL[3],
-        NBR_ALL[4],
-        NBR_ALL[5],
-    ],
-    Dispatch::Liquid,
-);
-pub const FORCES_SOLID: PassSpec = pass(
-    "forces_solid",
-    "forces",
-    &[
-        Params,
-        Objects,
-        LiquidPos,
-        LiquidVel,
-        LiquidDens,
-        SolidPos,
-        SolidVel,
-        SolidDens,
-        SolidFlags,
-        SolidStress,
-        SolidAcc,
-        BondTable,
-        BondCount,
-        BoundaryPos,
-        BoundaryVel,
-        BoundaryPos0,
-        SolidPosRef,
-        SolidAffine,
-        NBR_ALL[0],
-        NBR_ALL[1],
-        NBR_ALL[2],
-        NBR_ALL[3],
-        NBR_ALL[4],
-        NBR_ALL[5],
-    ],
-    Dispatch::Solid,
-);
-pub const FORCES_XSPH_LIQUID: PassSpec = pass(
-    "forces_xsph_liquid",
-    "forces",
-    &[Params, LiquidPos, LiquidVel, LiquidDens, LiquidVelAdv, LiquidOrder, LiquidCellStart],
-    Dispatch::Liquid,
-);
-pub const FORCES_XSPH_SOLID: PassSpec = pass(
-    "forces_xsph_solid",
-    "forces",
-    &[Params, SolidPos, SolidVel, SolidDens, SolidFlags, SolidVelAdv, SolidOrder, SolidCellStart],
-    Dispatch::Solid,
-);
+/// The liquid forces of an evaluation; evaluation 0's pass also writes the XSPH velocities from the
+/// same neighbour walk (forces.rs `forces_liquid` with `xsph`).
+const FORCES_LIQUID_SLOTS: &[Slot] = &[
+    Params,
+    Objects,
+    LiquidPos,
+    LiquidVel,
+    LiquidDens,
+    LiquidAcc,
+    LiquidVelAdv,
+    SolidPos,
+    SolidVel,
+    SolidDens,
+    SolidFlags,
+    BoundaryPos,
+    BoundaryVel,
+    BoundaryPos0,
+    NBR_ALL[0],
+    NBR_ALL[1],
+    NBR_ALL[2],
+    NBR_ALL[3],
+    NBR_ALL[4],
+    NBR_ALL[5],
+];
+pub const FORCES_LIQUID: PassSpec = pass("forces_liquid", "forces", FORCES_LIQUID_SLOTS, Dispatch::Liquid);
+pub const FORCES_LIQUID_XSPH: PassSpec = pass("forces_liquid_xsph", "forces", FORCES_LIQUID_SLOTS, Dispatch::Liquid);
+/// The same for the solid (forces.rs `forces_solid` with `xsph`).
+const FORCES_SOLID_SLOTS: &[Slot] = &[
+    Params,
+    Objects,
+    LiquidPos,
+    LiquidVel,
+    LiquidDens,
+    SolidPos,
+    SolidVel,
+    SolidDens,
+    SolidFlags,
+    SolidStress,
+    SolidAcc,
+    SolidVelAdv,
+    BondTable,
+    BondCount,
+    BoundaryPos,
+    BoundaryVel,
+    BoundaryPos0,
+    SolidPosRef,
+    SolidAffine,
+    NBR_ALL[0],
+    NBR_ALL[1],
+    NBR_ALL[2],
+    NBR_ALL[3],
+    NBR_ALL[4],
+    NBR_ALL[5],
+];
+pub const FORCES_SOLID: PassSpec = pass("forces_solid", "forces", FORCES_SOLID_SLOTS, Dispatch::Solid);
+pub const FORCES_SOLID_XSPH: PassSpec = pass("forces_solid_xsph", "forces", FORCES_SOLID_SLOTS, Dispatch::Solid);
 pub const DT_CLEAR: PassSpec =
     PassSpec { entry: "dt_clear", family: "dt", workgroup_size: 1, slots: &[Params, Step], dispatch: Dispatch::One };
 pub const DT_REDUCE_LIQUID: PassSpec =
@@ -338,13 +324,14 @@ pub const ALL_PASSES: &[PassSpec] = &[
     GRID_REORDER_APPLY,
     DENSITY_LIQUID,
     DENSITY_SOLID,
+    DENSITY_SOLID_KEPT,
     SOLID_STRESS,
     SOLID_FIT,
     SOLID_DEF_GRAD,
     FORCES_LIQUID,
     FORCES_SOLID,
-    FORCES_XSPH_LIQUID,
-    FORCES_XSPH_SOLID,
+    FORCES_LIQUID_XSPH,
+    FORCES_SOLID_XSPH,
     DT_CLEAR,
     DT_REDUCE_LIQUID,
     DT_REDUCE_SOLID,
@@ -416,10 +403,8 @@ pub const STEP_FIRST: &[Stage] = &[
     Stage::Pass(DENSITY_SOLID),
     Stage::Pass(SOLID_STRESS),
     Stage::Pass(SOLID_FIT),
-    Stage::Pass(FORCES_LIQUID),
-    Stage::Pass(FORCES_SOLID),
-    Stage::Pass(FORCES_XSPH_LIQUID),
-    Stage::Pass(FORCES_XSPH_SOLID),
+    Stage::Pass(FORCES_LIQUID_XSPH),
+    Stage::Pass(FORCES_SOLID_XSPH),
     Stage::Pass(DT_REDUCE_LIQUID),
     Stage::Pass(DT_REDUCE_SOLID),
     Stage::Pass(DT_FINALIZE),
