@@ -111,7 +111,16 @@ pub fn measure(
     min_steps: u64,
     max_steps: u64,
 ) -> Result<BenchRow, BenchError> {
-    measure_with(sc, backend, min_wall_s, min_steps, max_steps, None, false)
+    measure_with(sc, backend, min_wall_s, min_steps, max_steps, None, Setup::default())
+}
+
+/// How [`measure_with`] sets the measured simulation up.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Setup {
+    /// Generate the liquid in a random storage order ([`shuffle_liquid`]).
+    pub shuffled_liquid: bool,
+    /// GPU: time the passes per entry point instead of per family.
+    pub entry_points: bool,
 }
 
 /// Puts the generated liquid in a random storage order (a fixed xorshift permutation): the locality a
@@ -135,8 +144,7 @@ pub fn shuffle_liquid(g: &mut crate::scenario::GeneratedParticles) {
 }
 
 /// [`measure`], recording the run to `record` as the viewer does (see [`RecordCost`]; its
-/// `overhead_measured_pct` is filled in by [`record_overhead`]), with the liquid generated in a random
-/// order when `shuffled_liquid` ([`shuffle_liquid`]).
+/// `overhead_measured_pct` is filled in by [`record_overhead`]), set up as `setup` says.
 pub fn measure_with(
     sc: &Scenario,
     backend: BackendKind,
@@ -144,13 +152,14 @@ pub fn measure_with(
     min_steps: u64,
     max_steps: u64,
     record: Option<&std::path::Path>,
-    shuffled_liquid: bool,
+    setup: Setup,
 ) -> Result<BenchRow, BenchError> {
     let mut generated = crate::scenario::generate(sc);
-    if shuffled_liquid {
+    if setup.shuffled_liquid {
         shuffle_liquid(&mut generated);
     }
-    let sim = Simulation::from_generated(sc, generated, backend)?;
+    let mut sim = Simulation::from_generated(sc, generated, backend)?;
+    sim.time_entry_points(setup.entry_points);
     let mut rs = RecordedSimulation { sim, recorder: None };
     rs.sim.step()?; // warm-up: first-use allocations, shader compilation
     let mut cost = RecordCost::default();
@@ -265,10 +274,10 @@ pub fn record_overhead(
     backend: BackendKind,
     min_wall_s: f64,
     file: &std::path::Path,
-    shuffled_liquid: bool,
+    setup: Setup,
 ) -> Result<(BenchRow, BenchRow), BenchError> {
-    let plain = measure_with(sc, backend, min_wall_s, 3, u64::MAX, None, shuffled_liquid)?;
-    let mut rec = measure_with(sc, backend, min_wall_s, 3, u64::MAX, Some(file), shuffled_liquid)?;
+    let plain = measure_with(sc, backend, min_wall_s, 3, u64::MAX, None, setup)?;
+    let mut rec = measure_with(sc, backend, min_wall_s, 3, u64::MAX, Some(file), setup)?;
     let _ = std::fs::remove_file(file);
     if let Some(c) = &mut rec.recording {
         c.overhead_measured_pct = 100.0 * (1.0 - rec.ps_per_s / plain.ps_per_s.max(1e-30));

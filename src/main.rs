@@ -147,6 +147,10 @@ enum Cmd {
         /// behind, which `numerics.reorder_liquid` (default on) restores by renumbering it by cell.
         #[arg(long)]
         shuffle_liquid: bool,
+        /// GPU: report the time per entry point (WGSL function, e.g. forces_solid_xsph) instead of per
+        /// pass family (forces).
+        #[arg(long)]
+        entry_points: bool,
     },
     /// Render a scenario headless at simulated time T to a PNG (offscreen, the viewer's renderer), or a
     /// PNG sequence from T to --until every --every seconds.
@@ -692,7 +696,8 @@ fn real_main() -> Result<()> {
             }
             Ok(())
         }
-        Cmd::Bench { sizes, scenario, set, backends, seconds, json, record, shuffle_liquid } => {
+        Cmd::Bench { sizes, scenario, set, backends, seconds, json, record, shuffle_liquid, entry_points } => {
+            let setup = perfuse::bench::Setup { shuffled_liquid: shuffle_liquid, entry_points };
             if !(seconds.is_finite() && seconds > 0.0) {
                 bail!("--seconds must be positive, got {seconds}");
             }
@@ -724,14 +729,12 @@ fn real_main() -> Result<()> {
                     );
                     let measured = if record {
                         let file = std::env::temp_dir().join(format!("perfuse-bench-{}.pfrec", std::process::id()));
-                        perfuse::bench::record_overhead(sc, b.into(), seconds, &file, shuffle_liquid).map(
-                            |(plain, rec)| {
-                                eprint!("{}", perfuse::bench::table(std::slice::from_ref(&plain)));
-                                rec
-                            },
-                        )
+                        perfuse::bench::record_overhead(sc, b.into(), seconds, &file, setup).map(|(plain, rec)| {
+                            eprint!("{}", perfuse::bench::table(std::slice::from_ref(&plain)));
+                            rec
+                        })
                     } else {
-                        perfuse::bench::measure_with(sc, b.into(), seconds, 3, u64::MAX, None, shuffle_liquid)
+                        perfuse::bench::measure_with(sc, b.into(), seconds, 3, u64::MAX, None, setup)
                     };
                     let row = match measured {
                         Ok(row) => row,

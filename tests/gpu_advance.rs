@@ -348,3 +348,38 @@ fn errors_reach_the_innermost_scope() {
         ErrorScope::around(device, "clean", || Ok(())).expect("no error left over");
     });
 }
+
+/// `time_entry_points`: the timed batch (the second) reports one time per entry point that ran — the
+/// step's own passes, evaluation 0's `forces_solid_xsph` and `density_solid_kept` among them — and
+/// nothing else; back to families, the totals restart and are named by family.
+#[test]
+fn pass_times_per_entry_point() {
+    use perfuse::sim::gpu::passes::ALL_PASSES;
+    gpu_test("pass_times_per_entry_point", |ctx| {
+        let (_, mut gpu) = solvers(ctx, &perfused_block(), |_| {});
+        gpu.time_entry_points(true);
+        let mut acc = BatchTotals::default();
+        for _ in 0..2 {
+            gpu.advance(3, f64::INFINITY, &mut acc).expect("GPU advance");
+        }
+        let Some(times) = gpu.pass_times() else {
+            panic!("the software adapter has timestamp queries; no pass times came back");
+        };
+        let names: Vec<&str> = times.iter().map(|(k, _)| k.as_str()).collect();
+        for (k, t) in &times {
+            assert!(ALL_PASSES.iter().any(|p| p.entry == k), "{k} is not an entry point");
+            assert!(t.is_finite() && *t >= 0.0, "{k}: {t}");
+        }
+        for want in ["forces_solid_xsph", "forces_solid", "density_solid_kept", "density_solid", "fracture_apply"] {
+            let t = times.iter().find(|(k, _)| k == want).map(|(_, t)| *t);
+            assert!(t.is_some_and(|t| t > 0.0), "{want} not timed: {names:?}");
+        }
+        assert!(!names.contains(&"forces"), "{names:?}");
+        gpu.time_entry_points(false);
+        for _ in 0..32 {
+            gpu.advance(1, f64::INFINITY, &mut acc).expect("GPU advance");
+        }
+        let families: Vec<String> = gpu.pass_times().expect("pass times").into_iter().map(|(k, _)| k).collect();
+        assert!(families.iter().any(|k| k == "forces") && families.iter().all(|k| k != "forces_solid"), "{families:?}");
+    });
+}

@@ -284,7 +284,8 @@ fn bench_measures_the_cost_of_recording() {
     std::fs::write(&scenario, common::scenes::PERFUSED_BLOCK_3D).expect("write");
     let file = dir.join("bench.pfrec");
     let (plain, rec) =
-        perfuse::bench::record_overhead(&perfused_block(), BackendKind::Cpu, 0.3, &file, false).expect("measured");
+        perfuse::bench::record_overhead(&perfused_block(), BackendKind::Cpu, 0.3, &file, Default::default())
+            .expect("measured");
     let c = rec.recording.as_ref().expect("recording cost");
     assert!(plain.recording.is_none());
     assert!(c.keyframes >= 1 && c.keyframe_bytes > 1000.0 && c.file_bytes as f64 >= c.keyframe_bytes, "{c:?}");

@@ -564,7 +564,15 @@ impl Simulation {
         }
     }
 
-    /// Accumulated wall time per pass family [s], sorted by name.
+    /// GPU back-end: time the passes per entry point instead of per family from now on (`perfuse bench
+    /// --entry-points`); the CPU's timers are per family only.
+    pub fn time_entry_points(&mut self, by_entry: bool) {
+        if let Engine::Gpu(g) = &mut self.engine {
+            g.time_entry_points(by_entry);
+        }
+    }
+
+    /// Accumulated wall time per pass family (GPU: or entry point) [s], sorted by name.
     pub fn pass_times(&self) -> Vec<(String, f64)> {
         match &self.engine {
             Engine::Cpu(c) => c.timers.totals.iter().map(|(k, v)| (k.to_string(), v.as_secs_f64())).collect(),

@@ -168,15 +168,18 @@ fn bytes<T: Pod>(v: &[T]) -> Vec<u8> {
     bytemuck::cast_slice(v).to_vec()
 }
 
-/// Per-pass-family GPU timers: timestamp queries around one compute pass per family segment of a
-/// timed batch (every [`TIMED_EVERY`]th), resolved and read back with that batch's `BatchState`.
+/// Per-pass GPU timers: timestamp queries around one compute pass per segment of a timed batch (every
+/// [`TIMED_EVERY`]th) — a run of dispatches of one family, or with `by_entry` of one entry point —
+/// resolved and read back with that batch's `BatchState`.
 struct PassTimer {
     query_set: wgpu::QuerySet,
     resolve: wgpu::Buffer,
     staging: wgpu::Buffer,
     /// Nanoseconds per timestamp tick.
     period_ns: f64,
-    /// Measured seconds per family, and the steps they cover.
+    /// Segments per entry point instead of per family ([`GpuSolver::time_entry_points`]).
+    by_entry: bool,
+    /// Measured seconds per family (or entry point), and the steps they cover.
     totals: BTreeMap<&'static str, f64>,
     timed_steps: u64,
 }
@@ -739,8 +742,9 @@ impl GpuSolver {
         }
     }
 
-    /// Encodes `n` batched steps; with `timed`, one compute pass per family segment with timestamps,
-    /// returning (step, family) of each segment in query order.
+    /// Encodes `n` batched steps; with `timed`, one compute pass per family (or entry-point) segment
+    /// with timestamps, returning (step, name) of each segment in query order — whole steps only: the
+    /// first step that would run out of queries and those after it are not timed.
     fn encode_batch(&self, enc: &mut wgpu::CommandEncoder, n: usize, timed: bool) -> Vec<(usize, &'static str)> {
         // every step after the first finds the liquid densities of the previous step's evaluation 1
         let (first, rest) = (self.step_items(self.liquid_density_fresh), self.step_items(true));
@@ -770,9 +774,10 @@ impl GpuSolver {
             return segments;
         };
         let family = |it: &Item| match it {
-            Item::Dispatch(spec, _, _) => Some(spec.family),
+            Item::Dispatch(spec, _, _) => Some(if timer.by_entry { spec.entry } else { spec.family }),
             Item::SyncCounts => None,
         };
+        let mut out_of_queries = false;
         for k in 0..n {
             let items = step_items(k);
             let mut i = 0;
@@ -787,7 +792,12 @@ impl GpuSolver {
                     j += 1;
                 }
                 let q = 2 * segments.len() as u32;
-                let writes = (q + 2 <= MAX_QUERIES).then(|| wgpu::ComputePassTimestampWrites {
+                if q + 2 > MAX_QUERIES && !out_of_queries {
+                    // this step is timed only in part: time none of it
+                    out_of_queries = true;
+                    segments.retain(|(s, _)| *s < k);
+                }
+                let writes = (!out_of_queries).then(|| wgpu::ComputePassTimestampWrites {
                     query_set: &timer.query_set,
                     beginning_of_pass_write_index: Some(q),
                     end_of_pass_write_index: Some(q + 1),
@@ -870,14 +880,17 @@ impl GpuSolver {
         if let Some(timer) = self.timer.as_mut().filter(|_| !segments.is_empty()) {
             let nq = 2 * segments.len() as u64;
             let ticks: Vec<u64> = buffers::map_and_read(&self.ctx.device, &timer.staging, 8 * nq, "timestamps")?;
+            // steps 0 … timed − 1 are timed whole (encode_batch); later ones are no-ops after the batch
+            // stopped, or were left untimed for want of queries
+            let timed = segments.last().map_or(0, |(k, _)| k + 1).min(b.steps as usize);
             for (q, (k, family)) in segments.iter().enumerate() {
-                if *k >= b.steps as usize {
-                    continue; // a no-op step after the batch stopped
+                if *k >= timed {
+                    continue;
                 }
                 let (t0, t1) = (ticks.get(2 * q).copied().unwrap_or(0), ticks.get(2 * q + 1).copied().unwrap_or(0));
                 *timer.totals.entry(family).or_insert(0.0) += t1.saturating_sub(t0) as f64 * timer.period_ns * 1e-9;
             }
-            timer.timed_steps += u64::from(b.steps);
+            timer.timed_steps += timed as u64;
         }
         Ok(b)
     }
@@ -1001,8 +1014,19 @@ impl GpuSolver {
         Ok(StepInfo { t: self.t, dt: b.dt[0], limit: dt_limit(b.limit[0]), broken_bonds: acc.broken_bonds })
     }
 
-    /// Accumulated GPU time per pass family [s] (timestamp queries on every [`TIMED_EVERY`]th batch,
-    /// scaled to all steps taken), or `None` without timestamp queries.
+    /// Times the passes per entry point (`by_entry`) or per family (the default) from now on; the
+    /// totals so far are dropped. Without timestamp queries there is nothing to time.
+    pub fn time_entry_points(&mut self, by_entry: bool) {
+        if let Some(t) = &mut self.timer {
+            t.by_entry = by_entry;
+            t.totals.clear();
+            t.timed_steps = 0;
+        }
+    }
+
+    /// Accumulated GPU time per pass family (or entry point, [`Self::time_entry_points`]) [s]
+    /// (timestamp queries on every [`TIMED_EVERY`]th batch, scaled to all steps taken), or `None`
+    /// without timestamp queries.
     pub fn pass_times(&self) -> Option<Vec<(String, f64)>> {
         let timer = self.timer.as_ref()?;
         let scale = if timer.timed_steps > 0 { self.steps as f64 / timer.timed_steps as f64 } else { 0.0 };
@@ -1491,6 +1515,7 @@ impl PassTimer {
             resolve,
             staging,
             period_ns: ctx.queue.get_timestamp_period() as f64,
+            by_entry: false,
             totals: BTreeMap::new(),
             timed_steps: 0,
         }
