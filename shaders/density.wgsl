@@ -5,7 +5,8 @@
 //   clamped at 0 unless liquid_tension and nˢ below its limit or the particle in its region.
 // * density_solid: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
 //   nˡ by summation of the liquid (membrane override 1 − nˢ_sat, §3.1.3),
-//   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52).
+//   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); density_solid_kept, evaluation 0's, keeps the nˡ of
+//   the previous step's evaluation 1 (same positions).
 // Neighbour sums run in the canonical order of grid.wgsl, as on the CPU.
 #import common
 

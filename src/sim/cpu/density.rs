@@ -6,7 +6,8 @@
 //!   `liquid_tension_below_ns` or the particle lies in a `liquid_tension_in` region.
 //! * `density_solid`: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
 //!   nˡ by summation of the liquid (membrane override 1 − nˢ_sat, §3.1.3),
-//!   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52).
+//!   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); without `sum_liquid` (`density_solid_kept`,
+//!   evaluation 0) nˡ is the one of the previous step's evaluation 1, on the same positions.
 
 use super::{BoundarySet, LiquidSet, Nbrs, SolidSet};
 use crate::scenario::SolidFlags;
