@@ -213,8 +213,8 @@ fn reused_liquid_densities_equal_a_fresh_pass() {
     use perfuse::sim::gpu::passes::{DENSITY_LIQUID, DENSITY_SOLID, Stage};
     gpu_test("reused_liquid_densities_equal_a_fresh_pass", |ctx| {
         let (mut cpu, mut gpu) = solvers(ctx, &perfused_block(), |_| {});
-        let n = gpu.read_state().expect("state").liquid.len();
-        let ns = gpu.read_state().expect("state").solid.len();
+        let state = gpu.read_state().expect("state");
+        let (n, ns) = (state.liquid.len(), state.solid.len());
         for (round, steps) in [(0, 40u64), (1, 1), (2, 25)] {
             if steps == 1 {
                 gpu.step().expect("GPU step");
