@@ -44,6 +44,9 @@ struct SimParams {
     // Params::liquid_tension_in, regions k < MAX_TENSION_REGIONS as tension[2k], tension[2k + 1]:
     // w of the first 0 unused, 1 box (xyz min; second: xyz max), 2 sphere (xyz centre; second: w radius²)
     tension: array<vec4<f32>, 8>,
+    // Params::outlets_in_effect, outlet k < MAX_OUTLETS as outlet[3k] (xyz min, w its density > 0; 0: none),
+    // outlet[3k + 1] (xyz max, w its absolute pressure p_a + gauge), outlet[3k + 2] (xyz its unit normal)
+    outlet: array<vec4<f32>, 6>,
     rho0_l: f32,
     rho0_s: f32,
     eta: f32,
@@ -104,8 +107,22 @@ struct SimParams {
     ap_eps: f32,
     ap_exp: i32,
     wc_dx_l: f32,
-    _pad0: f32,
+    // ambient pressure p_a added to (2.53) (numerics.ambient_pressure; 0: none)
+    ambient_pressure: f32,
     _pad1: f32,
+}
+
+// OutletRegion::find: the index k of the first outlet buffer in effect that holds x (boundaries included,
+// the same comparisons; its density params.outlet[3k].w, pressure [3k + 1].w, normal [3k + 2].xyz), or -1.
+fn outlet_find(x: vec3<f32>) -> i32 {
+    for (var k = 0u; k < 2u; k++) {
+        let a = params.outlet[3u * k];
+        let b = params.outlet[3u * k + 1u];
+        if (a.w != 0.0 && x.x >= a.x && x.y >= a.y && x.z >= a.z && x.x <= b.x && x.y <= b.y && x.z <= b.z) {
+            return i32(k);
+        }
+    }
+    return -1;
 }
 
 // Mirrors `StepState`: the GPU-resident Δt (SPEC §5.3) and the step status bitmask (STYLE §5.4).

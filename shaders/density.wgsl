@@ -2,7 +2,9 @@
 //
 // * density_liquid: ρˡ by summation over L ∪ B_l (2.46) (membrane particles count as boundary),
 //   nˡ = ρ/ρ₀ˡ, nˢ by summation of the solid (SPEC D-8), pˡ = k(nˢ + nˡ − 1 + C₁nˢnˡ) (2.53)/(3.5, D-9),
-//   clamped at 0 unless liquid_tension and nˢ below its limit or the particle in its region.
+//   clamped at 0 unless liquid_tension and nˢ below its limit or the particle in its region; plus the
+//   ambient pressure p_a before the clamp; in an outlet's buffer the outlet's p_a + gauge and the
+//   density of pure liquid at it instead.
 // * density_solid: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
 //   nˡ by summation of the liquid (membrane override 1 − nˢ_sat, §3.1.3),
 //   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); density_solid_kept, evaluation 0's, keeps the nˡ of
@@ -99,14 +101,22 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let n_s = sum_s / params.rho0_s;
     let n_l = rho / params.rho0_l;
-    let raw = params.k_l * (n_s + n_l - 1.0 + params.c1 * n_s * n_l);
-    // (2.53) clamped at 0 unless the liquid may take tension here
+    let raw = params.ambient_pressure + params.k_l * (n_s + n_l - 1.0 + params.c1 * n_s * n_l);
+    // p_a + (2.53) clamped at 0 unless the liquid may take tension here; an outlet's buffer carries its
+    // prescribed pressure and density
     var pr = raw;
-    if (!liquid_may_pull(xi, n_s)) {
+    var rho_i = rho;
+    var n_l_i = n_l;
+    let outlet = outlet_find(xi);
+    if (outlet >= 0) {
+        rho_i = params.outlet[3 * outlet].w;
+        n_l_i = rho_i / params.rho0_l;
+        pr = params.outlet[3 * outlet + 1].w;
+    } else if (!liquid_may_pull(xi, n_s)) {
         pr = max(raw, 0.0);
     }
     // CPU: n_l = rho / rho0_l computed again from the stored ρ (same operation).
-    liquid_dens[i] = vec4<f32>(rho, n_l, n_s, pr);
+    liquid_dens[i] = vec4<f32>(rho_i, n_l_i, n_s, pr);
 }
 
 // The solid's continuity, fractions and pressure, nˡ summed over the liquid.

@@ -82,13 +82,13 @@ fn no_slip_factor(obj: u32, xi: vec3<f32>, xb: vec3<f32>) -> f32 {
 // Acceleration of a liquid particle from one boundary-like neighbour (forces.rs
 // `liquid_from_boundary`); density < 0 is the mirror mode with hydrostatic p_b.
 fn liquid_from_boundary(rho: f32, pr: f32, n_l: f32, vi: vec3<f32>, m_b: f32, vb: vec3<f32>, xib: vec3<f32>, r: f32,
-                        density: f32, pressure: f32, no_slip: f32, g: vec3<f32>) -> vec3<f32> {
+                        density: f32, pressure: f32, no_slip: f32, g: vec3<f32>, outside: f32) -> vec3<f32> {
     let k = params.k_liquid;
     let grad = xib * grad_spiky_factor(k, r);
     var bracket: f32;
     if (density < 0.0) {
         let pb = max(pr + rho * dot3(g, -xib), 0.0);
-        bracket = (max(pr, 0.0) + pb) / (rho * rho);
+        bracket = (max(pr, 0.0) + pb - 2.0 * outside) / (rho * rho);
     } else {
         bracket = pr / (rho * rho) + pressure / (density * density);
     }
@@ -184,6 +184,49 @@ fn hourglass_stiffness(flags_i: u32, flags_j: u32) -> f32 {
     return 0.5 * (stiffness_factor(flags_i) + stiffness_factor(flags_j));
 }
 
+// Velocity of liquid particle i in the buffer of the outlet of unit normal n (forces.rs `outlet_velocity`):
+// n times the normal part of the Shepard mean Σ v_j W6 / Σ W6 over the open liquid within R_l, or, with
+// none near, over all the other liquid within R_l, or of v_i.
+fn outlet_velocity(i: u32, xi: vec3<f32>, vi: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let kl = params.k_liquid;
+    let ci = cell_coords(xi);
+    let kb = nbr_begin();
+    let ke = nbr_end();
+    let kstep = nbr_step(ci);
+    let r2l = kl.r * kl.r;
+    var sum_w = 0.0;
+    var sum_v = vec3<f32>(0.0);
+    var all_w = 0.0;
+    var all_v = vec3<f32>(0.0);
+    for (var k = kb; k < ke; k += kstep) {
+        let c = nbr_span(ci, k);
+        if (c.x < 0) { continue; }
+        for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+            let e = liquid_order[q];
+            let j = e.id;
+            let xij = min_image_wrapped(xi - e.pos);
+            let r2 = dot3(xij, xij);
+            if (r2 < r2l && j != i) {
+                let w = w_poly6(kl, sqrt(r2));
+                let vj = liquid_vel[j].xyz;
+                all_w += w;
+                all_v += vj * w;
+                if (outlet_find(liquid_pos[j].xyz) < 0) {
+                    sum_w += w;
+                    sum_v += vj * w;
+                }
+            }
+        }
+    }
+    var v = vi;
+    if (sum_w > 0.0) {
+        v = sum_v / sum_w;
+    } else if (all_w > 0.0) {
+        v = all_v / all_w;
+    }
+    return n * dot3(v, n);
+}
+
 fn liquid_gravity() -> vec3<f32> {
     return select(vec3<f32>(0.0), params.gravity.xyz, params.gravity.w != 0.0);
 }
@@ -218,6 +261,16 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     let n_l = di.y;
     let n_s = di.z;
     let pr = di.w;
+    let outlet = outlet_find(xi);
+    if (outlet >= 0) {
+        // an outlet's buffer feels no force; evaluation 0 gives it the velocity of the liquid around it as
+        // its ṽ (integrate_predict_liquid makes it its v)
+        liquid_acc[i] = vec4<f32>(0.0);
+        if (xsph) {
+            liquid_vel_adv[i] = vec4<f32>(outlet_velocity(i, xi, vi, params.outlet[3 * outlet + 2].xyz), 0.0);
+        }
+        return;
+    }
     let pi = pr / (rho * rho);
     let inv_m = 1.0 / liquid_pos[i].w;
     let ci = cell_coords(xi);
@@ -277,7 +330,7 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
                 let slip = no_slip_factor(obj, xi, e.pos);
                 let o = objects[obj];
                 let r = sqrt(r2);
-                a += liquid_from_boundary(rho, pr, n_l, vi, boundary_pos[j].w, boundary_vel[j].xyz, xij, r, o.density, o.pressure, slip, g);
+                a += liquid_from_boundary(rho, pr, n_l, vi, boundary_pos[j].w, boundary_vel[j].xyz, xij, r, o.density, o.pressure, slip, g, 0.0);
                 if (params.cohesion_lb > 0.0 && r > 0.0) {
                     // adhesion (3.3) to walls and plates
                     a -= xij * (cohesion_pair(params.cohesion_lb, kl.r, r) * inv_m / r);
@@ -300,7 +353,7 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
                 let r = sqrt(r2);
                 let vj = solid_vel[j];
                 if (r < kl.r && (solid_flags[j] & SOLID_MEMBRANE) != 0u) {
-                    a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xij, r, -1.0, 0.0, 1.0, g);
+                    a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xij, r, -1.0, 0.0, 1.0, g, 0.0);
                 }
                 let dj = solid_dens[j];
                 if (params.kbar > 0.0) {
@@ -503,7 +556,8 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                         fw -= xij * (liquid_pos[j].w / dj.x * wicking_pair(kx.h, n_s, di.y, r) / r);
                     }
                     if (membrane && r2 < r2l) {
-                        let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, liquid_vel[j].xyz, vi4.w, vi, -xij, r, -1.0, 0.0, 1.0, g_l);
+                        let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, liquid_vel[j].xyz, vi4.w, vi, -xij, r, -1.0, 0.0, 1.0, g_l,
+                                                    params.ambient_pressure);
                         fm -= on_j * liquid_pos[j].w;
                     }
                 }

@@ -25,7 +25,8 @@ fn wrap_periodic(x_in: vec3<f32>) -> vec3<f32> {
     return x;
 }
 
-// a⁰ ← a, v^p = vⁿ + Δt a⁰ (2.64); inside an inlet's buffer: a⁰ = 0, v = u (emit.wgsl).
+// a⁰ ← a, v^p = vⁿ + Δt a⁰ (2.64); inside an inlet's buffer: a⁰ = 0, v = u (emit.wgsl); inside an outlet's
+// buffer: a⁰ = 0, v = ṽ (its Shepard velocity, forces.wgsl outlet_velocity).
 @compute @workgroup_size(64)
 fn integrate_predict_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
@@ -37,6 +38,12 @@ fn integrate_predict_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (u.w != 0.0) {
         liquid_acc0[i] = vec4<f32>(0.0);
         liquid_vel[i] = vec4<f32>(u.xyz, 0.0);
+        return;
+    }
+    if (outlet_find(liquid_pos[i].xyz) >= 0) {
+        // an outlet's buffer: the Shepard velocity forces_liquid_xsph left in ṽ, unaccelerated
+        liquid_acc0[i] = vec4<f32>(0.0);
+        liquid_vel[i] = vec4<f32>(liquid_vel_adv[i].xyz, 0.0);
         return;
     }
     let a = liquid_acc[i];

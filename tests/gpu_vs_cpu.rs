@@ -88,7 +88,7 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
         let nb = nbrs(cpu);
         let p = &cpu.params;
         (
-            density::density_liquid(p, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb),
+            density::density_liquid(p, &p.outlets, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb),
             density::density_solid(p, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, true),
         )
     };
@@ -114,6 +114,7 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
             gravity: cpu.st.gravity,
             contacts: &cpu.contacts,
             gravity_liquid: true,
+            outlets: &cpu.params.outlets,
         };
         let (a_l, vx_l) = forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, true);
         let (a_s, vx_s) = forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, true);
@@ -591,6 +592,7 @@ fn surface_tension_forces_match_cpu() {
                 gravity: cpu.st.gravity,
                 contacts: &cpu.contacts,
                 gravity_liquid: true,
+                outlets: &p.outlets,
             };
             (
                 forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, false).0,
@@ -649,6 +651,7 @@ fn wall_friction_matches_cpu() {
                 gravity: cpu.st.gravity,
                 contacts: &contacts,
                 gravity_liquid: true,
+                outlets: &cpu.params.outlets,
             };
             forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false).0
         };
@@ -934,5 +937,109 @@ fn a_vessel_of_boxes_holds_its_liquid_on_both_back_ends() {
     assert!(n_cpu < 432, "the suction drew the top layers into the sink");
     gpu_test("a_vessel_of_boxes_holds_its_liquid_on_both_back_ends", |_ctx| {
         assert_eq!(run(BackendKind::Gpu), n_cpu, "both back-ends sank the same particles");
+    });
+}
+
+/// A pressure outlet and the ambient pressure (`docs/outlet_column.ron`: a sealed column drawn at
+/// −5 kPa through an outlet buffer, p_a = 10 kPa) on both back-ends. Passes, on the CPU's state after 100
+/// steps (the column expanding into the buffer): the buffer's particles carry the outlet's density and
+/// absolute pressure, feel no force, and get the Shepard normal velocity as ṽ; ρ, p equal to 10⁻⁶
+/// relative, accelerations to 10⁻⁴ of max |a|, ṽ to 10⁻⁵ of max |v|. Then 300 whole steps of both:
+/// positions within 10⁻³ h and the same particles sunk. And the capsule's reaction to blood at p_a:
+/// the perfused cube with its capsule and p_a = 10 kPa, 300 steps on both, within 10⁻³ h.
+#[test]
+fn outlet_and_ambient_pressure_match_cpu() {
+    use perfuse::sim::params::OutletRegion;
+    let column = perfuse::scenario::Scenario::from_str_with_overrides(
+        include_str!("../docs/outlet_column.ron"),
+        "docs/outlet_column.ron",
+        &[],
+    )
+    .expect("the probe scenario");
+    gpu_test("outlet_and_ambient_pressure_match_cpu", |ctx| {
+        let mut cpu = stepped(solver_for(&column), 100);
+        let mut gpu = gpu_from(ctx.clone(), &cpu);
+        gpu.run_stages(&[Stage::Pass(passes::DENSITY_LIQUID), Stage::Pass(passes::FORCES_LIQUID_XSPH)]).unwrap();
+        cpu_evaluate(&mut cpu);
+        let (l, p) = (&cpu.st.liquid, &cpu.params);
+        let n = l.x.len();
+        let ld: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidDens, n).unwrap();
+        let al: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidAcc, n).unwrap();
+        let vl: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidVelAdv, n).unwrap();
+        let v3 = |v: &[[f32; 4]]| v.iter().map(xyz).collect::<Vec<Vec3>>();
+        let d_rho = max_abs_diff(&ld.iter().map(|x| x[0]).collect::<Vec<_>>(), &l.rho);
+        let d_p = max_abs_diff(&ld.iter().map(|x| x[3]).collect::<Vec<_>>(), &l.p);
+        let d_a = max_vec_diff(&v3(&al), &l.a);
+        let d_v = max_vec_diff(&v3(&vl), &l.vx);
+        let buffer: Vec<usize> = (0..n).filter(|&i| OutletRegion::find(&p.outlets, l.x[i]).is_some()).collect();
+        let o = p.outlets[0];
+        let moving = buffer.iter().filter(|&&i| l.vx[i].length() > 1e-4).count();
+        eprintln!(
+            "outlet column after 100 steps: {} of {n} particles in the buffer ({moving} moving); ρ GPU − CPU {d_rho:.3e}, \
+             p {d_p:.3e}, a {d_a:.3e} (max {:.3e}), ṽ {d_v:.3e} (max |v| {:.3e})",
+            buffer.len(),
+            max_len(&l.a),
+            max_len(&l.v)
+        );
+        assert!(!buffer.is_empty() && moving > 0, "the test state must have a moving buffer");
+        for &i in &buffer {
+            assert_eq!((l.rho[i], l.p[i], l.a[i]), (o.density, o.pressure, Vec3::ZERO), "buffer particle {i}");
+            assert!(l.vx[i].cross(o.normal).length() <= 1e-6 * l.vx[i].length().max(1e-12), "ṽ along the normal");
+        }
+        assert!(d_rho <= 1e-6 * p.rho0_l && d_p <= 1e-6 * max_abs(&l.p));
+        assert!(d_a <= 1e-4 * max_len(&l.a));
+        assert!(d_v <= 1e-5 * max_len(&l.v) + 1e-9);
+
+        let mut cpu = solver_for(&column);
+        let mut gpu = gpu_from(ctx.clone(), &cpu);
+        let (gs, cs, d_x) = step_both(&mut cpu, &mut gpu, 300);
+        let h = cpu.params.k_liquid.h;
+        eprintln!(
+            "outlet column, 300 steps (t = {:.3e} s): {} / {} liquid left, max |Δx| {d_x:.3e} m ({:.3e} h)",
+            cs.t,
+            gs.liquid.len(),
+            cs.liquid.len(),
+            d_x / h
+        );
+        assert_eq!(gs.liquid.len(), cs.liquid.len(), "both back-ends sink the same particles");
+        assert!(d_x <= 1e-3 * h, "positions diverged");
+
+        // the capsule's reaction to blood at p_a (forces_solid, `outside`), on the perfused cube after 20 steps
+        let mut sc = perfused_cube_under_gravity(
+            "ambient_capsule",
+            "membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483)),",
+        );
+        sc.numerics.ambient_pressure = Some(1e3);
+        let mut cpu = stepped(solver_for(&sc), 20);
+        let mut gpu = gpu_from(ctx, &cpu);
+        gpu.run_stages(passes::EVALUATE).unwrap();
+        gpu.run_stages(&[Stage::Pass(passes::FORCES_SOLID_XSPH)]).unwrap();
+        cpu_evaluate(&mut cpu);
+        let s = &cpu.st.solid;
+        let as_: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, s.x.len()).unwrap();
+        let d_as = max_vec_diff(&v3(&as_), &s.a);
+        // the same forces without the ambient term on the capsule: it must matter
+        let mut p0 = cpu.params.clone();
+        p0.ambient_pressure = 0.0;
+        let a0 = {
+            let nb = nbrs(&cpu);
+            let ctx = forces::ForceCtx {
+                p: &p0,
+                geoms: &cpu.geoms,
+                gravity: cpu.st.gravity,
+                contacts: &cpu.contacts,
+                gravity_liquid: true,
+                outlets: &p0.outlets,
+            };
+            forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false).0
+        };
+        let share = max_vec_diff(&a0, &s.a);
+        eprintln!(
+            "capsule at p_a = 1 kPa after 20 steps: solid a GPU − CPU {d_as:.3e} (max {:.3e}); the ambient term's \
+             share {share:.3e}",
+            max_len(&s.a)
+        );
+        assert!(share > 1e-3 * max_len(&s.a), "the ambient term does not act on the capsule");
+        assert!(d_as <= 1e-4 * max_len(&s.a));
     });
 }

@@ -606,3 +606,26 @@ fn a_cavity_in_the_liver_empties_its_blood() {
     // the primed box keeps every one of its particles: (2 cm / 5 mm)³ lattice sites
     assert_eq!(primed, 64, "primed particles kept");
 }
+
+/// Pressure outlets and the ambient pressure: a buffer needs a sink beyond it, a `Box`, a direction
+/// and a suction well below the liquid's stiffness (BASE: k = ρc² = 360 Pa); p_a is a non-negative
+/// pressure.
+#[test]
+fn outlet_inputs() {
+    let sink = "sinks: [ Sink(name: \"out\", region: Box(min: (0.0, 0.0095, 0.0), max: (0.01, 0.01, 0.0))) ],";
+    let outlet = |region: &str, pressure: &str, normal: &str| {
+        format!("outlets: [ Outlet(name: \"suction\", region: {region}, pressure: {pressure}, normal: {normal}) ],")
+    };
+    let buffer = "Box(min: (0.0, 0.007, 0.0), max: (0.01, 0.0095, 0.0))";
+    let with_both = |o: &str, s: &str| edit("    duration: 0.1,", &format!("    {o}\n    {s}\n    duration: 0.1,"));
+    Scenario::from_str_named(&with_both(&outlet(buffer, "-100.0", "(0.0, 1.0, 0.0)"), sink), "ok.ron")
+        .expect("a valid outlet");
+    expect(&with_both(&outlet(buffer, "-100.0", "(0.0, 1.0, 0.0)"), ""), &["outlets", "no sink", "Sink("]);
+    expect(
+        &with_both(&outlet("Sphere(centre: (0.005, 0.008, 0.0), radius: 0.001)", "-100.0", "(0.0, 1.0, 0.0)"), sink),
+        &["outlets[0].region", "Box"],
+    );
+    expect(&with_both(&outlet(buffer, "-100.0", "(0.0, 0.0, 0.0)"), sink), &["outlets[0].normal", "direction"]);
+    expect(&with_both(&outlet(buffer, "-200.0", "(0.0, 1.0, 0.0)"), sink), &["outlets[0].pressure", "stiffness"]);
+    expect(&edit("dt_max: 1e-3)", "dt_max: 1e-3, ambient_pressure: Some(-1.0))"), &["numerics.ambient_pressure", "Pa"]);
+}

@@ -73,6 +73,10 @@ pub struct Scenario {
     /// Liquid sinks: regions that remove the liquid particles entering them (outlets, a syringe barrel).
     #[serde(default)]
     pub sinks: Vec<Sink>,
+    /// Pressure outlets: buffers where the liquid's pressure is prescribed (a syringe's suction). Put
+    /// a sink just beyond each buffer: buffer particles move on into it.
+    #[serde(default)]
+    pub outlets: Vec<Outlet>,
     /// Most liquid particles the run may hold (emitters stop at it, with a warning). Default: the
     /// initial liquid plus 20 000 when there are emitters.
     #[serde(default)]
@@ -261,6 +265,14 @@ pub struct Numerics {
     /// without `liquid_tension_below_ns`, tension acts only in the regions.
     #[serde(default)]
     pub liquid_tension_in: Vec<Region>,
+    /// Ambient pressure p_a [Pa] (not in the thesis; README: deviations from SPEC): the liquid's pressure
+    /// is p_a + (2.53) (still clamped at 0 without `liquid_tension`), so that a suction of up to p_a
+    /// below ambient (an `outlets` buffer) is a lower pressure, not a tension that parts an SPH column.
+    /// The capsule and free solids feel the liquid's pressure less p_a (the ambient pressure outside
+    /// them balances it). A liquid free surface feels p_a as an outward push: use it where the liquid
+    /// is enclosed (a syringe). Absent: 0, the thesis's pressure.
+    #[serde(default)]
+    pub ambient_pressure: Option<f64>,
     /// Speed [m/s] above which a particle counts as runaway (divergence); default 20·c_max.
     #[serde(default)]
     pub max_speed: Option<f64>,
@@ -592,6 +604,27 @@ pub enum Flow {
 pub struct Sink {
     pub name: String,
     pub region: Region,
+}
+
+/// A pressure outlet (an open boundary after Tafuni et al. 2018, first order; README: deviations
+/// from SPEC): liquid particles inside the buffer `region` (a `Box`) carry the prescribed pressure
+/// `numerics.ambient_pressure + pressure` and the density of pure liquid at it (2.53) for their
+/// neighbours, feel no force and move along `normal` with the Shepard (W6-weighted) mean normal
+/// velocity of the open liquid within R_l. The liquid next to the buffer is pulled (pressure < 0) or
+/// pushed into it; a sink beyond the buffer removes what leaves. Unlike a `Prescribed` boundary under a
+/// sink, the buffer fills the kernel of the liquid below it, so the outlet removes what arrives and no
+/// more. Make the buffer at least 2R_l deep, so that the buffer particles the open liquid sees have
+/// whole kernels.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Outlet {
+    pub name: String,
+    /// The buffer: a `Box` a few Δx_l deep, across the whole channel.
+    pub region: Region,
+    /// Gauge pressure [Pa] in the buffer (−5000: a syringe's suction).
+    pub pressure: f64,
+    /// Direction in which liquid leaves through the buffer, toward its sink (normalised; e.g. (0, 0, 1)).
+    pub normal: V3,
 }
 
 /// Most entries of a flow table (GPU table size, `sim::cpu::emit::FLOW_MAX`).

@@ -319,6 +319,15 @@ pub fn validate(s: &Scenario) -> Result<(), Problem> {
     if let Some(v) = n.max_speed {
         Check::positive("numerics.max_speed", v, "m/s")?;
     }
+    if let Some(v) = n.ambient_pressure {
+        Check::range(
+            "numerics.ambient_pressure",
+            v,
+            0.0,
+            1e7,
+            "an ambient pressure in Pa of order the suction it must carry (1e4 for a syringe's −5 kPa)",
+        )?;
+    }
     if let Some(v) = n.hourglass {
         Check::range(
             "numerics.hourglass",
@@ -824,8 +833,71 @@ pub const MAX_TENSION_REGIONS: usize = 4;
 /// Most emitters and sinks of a scenario (GPU table sizes, `sim::cpu::emit`).
 pub const MAX_EMITTERS: usize = 8;
 pub const MAX_SINKS: usize = 8;
+/// Most pressure outlets (the uniform block's `SimParams::outlet`).
+pub const MAX_OUTLETS: usize = 2;
 /// Most emitter slots (lattice sites of all inlet regions together).
 pub const MAX_EMITTER_SLOTS: usize = 4096;
+
+/// Pressure outlets: boxes, at most `MAX_OUTLETS`, with a liquid and a sink to take what leaves the
+/// buffer, finite pressures well below the liquid's stiffness, and a direction.
+fn check_outlets(s: &Scenario) -> Result<(), Problem> {
+    if s.outlets.len() > MAX_OUTLETS {
+        return Err(Check::fail(
+            "outlets",
+            format!("{} outlets, at most {MAX_OUTLETS} are supported", s.outlets.len()),
+            "merge the buffers into fewer boxes",
+        ));
+    }
+    if s.outlets.is_empty() {
+        return Ok(());
+    }
+    if s.liquid.is_none() || s.numerics.dx_liquid.is_none() {
+        return Err(Check::fail(
+            "outlets",
+            "an outlet prescribes the liquid's pressure, but there is no `liquid` material or `numerics.dx_liquid`",
+            "add a liquid material and numerics.dx_liquid, or remove the outlets",
+        ));
+    }
+    if s.sinks.is_empty() {
+        return Err(Check::fail(
+            "outlets",
+            "an outlet's buffer moves its liquid on, but there is no sink to take it",
+            "add a sink just beyond each buffer (`sinks: [Sink(name: ..., region: Box(...))]`)",
+        ));
+    }
+    for (i, o) in s.outlets.iter().enumerate() {
+        let f = format!("outlets[{i}]");
+        check_region(&format!("{f}.region"), &o.region)?;
+        if !matches!(o.region, Region::Box { .. }) {
+            return Err(Check::fail(
+                format!("{f}.region"),
+                "an outlet's buffer must be a Box",
+                "give the buffer as Box(min: ..., max: ...) across the channel",
+            ));
+        }
+        Check::range(&format!("{f}.pressure"), o.pressure, -1e7, 1e7, "a gauge pressure in Pa, e.g. -5000")?;
+        let n = o.normal;
+        if !n.iter().all(|c| c.is_finite()) || n.iter().map(|c| c * c).sum::<f64>() < 1e-12 {
+            return Err(Check::fail(
+                format!("{f}.normal"),
+                format!("{n:?} is not a direction"),
+                "give the direction toward the outlet's sink, e.g. (0.0, 0.0, 1.0)",
+            ));
+        }
+        // the buffer's density ρ₀(1 + gauge/k) of (2.53) must stay a density
+        if let Some(l) = &s.liquid {
+            let k = l.stiffness.unwrap_or_else(|| l.density * l.sound_speed.unwrap_or(0.0).powi(2));
+            if k > 0.0 && o.pressure <= -0.5 * k {
+                return Err(Check::fail(
+                    format!("{f}.pressure"),
+                    format!("a suction of {} Pa expands the liquid (stiffness {k} Pa) by more than half", -o.pressure),
+                    "give a suction well below the liquid's stiffness, or stiffen the liquid",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
 
 /// Emitters, sinks and the liquid capacity (issue 7): inlet regions that hold at least one lattice
 /// site, finite non-negative flows, well-formed tables, a patient behind a hepatic inflow.
@@ -932,6 +1004,7 @@ fn check_emitters(s: &Scenario, d: usize) -> Result<(), Problem> {
     for (i, k) in s.sinks.iter().enumerate() {
         check_region(&format!("sinks[{i}].region"), &k.region)?;
     }
+    check_outlets(s)?;
     if let Some(c) = s.liquid_capacity
         && (c == 0 || c as usize > MAX_PARTICLES)
     {

@@ -40,6 +40,10 @@ pub struct Params {
     /// Where else the liquid pressure may go negative, whatever nˢ (`numerics.liquid_tension_in`, in
     /// simulation coordinates; empty without `liquid_tension`).
     pub liquid_tension_in: Vec<TensionRegion>,
+    /// Ambient pressure p_a [Pa] added to the liquid's (2.53) (`numerics.ambient_pressure`; 0: none).
+    pub ambient_pressure: f32,
+    /// Pressure outlets (`outlets`) in simulation coordinates, pressures absolute (p_a + gauge).
+    pub outlets: Vec<OutletRegion>,
     /// Hourglass-control coefficient c of `numerics.hourglass` (0: off).
     pub hourglass: f32,
     /// `numerics.reorder_liquid`: renumber the liquid by cell every step (`grid_reorder`).
@@ -124,6 +128,34 @@ impl TensionRegion {
                 d.x * d.x + d.y * d.y + d.z * d.z <= radius * radius
             }
         }
+    }
+}
+
+/// A pressure outlet's buffer (scenario `outlets`) in simulation coordinates: a box (boundaries
+/// included, the arithmetic of `outlet_at` in common.wgsl), the absolute pressure p_a + gauge its
+/// liquid carries, the density ρ₀ˡ(1 + gauge/k) of pure liquid at that pressure by (2.53), which
+/// its liquid shows in the pair terms of its neighbours, and the unit normal along which it moves.
+/// Twin of `SimParams::outlet`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OutletRegion {
+    pub min: Vec3,
+    pub max: Vec3,
+    pub pressure: f32,
+    pub density: f32,
+    pub normal: Vec3,
+}
+
+impl OutletRegion {
+    /// The first outlet of `outlets` whose buffer holds `x`.
+    #[inline]
+    pub fn find(outlets: &[OutletRegion], x: Vec3) -> Option<&OutletRegion> {
+        outlets.iter().find(|o| o.contains(x))
+    }
+
+    #[inline]
+    pub fn contains(&self, x: Vec3) -> bool {
+        let (a, b) = (self.min, self.max);
+        x.x >= a.x && x.y >= a.y && x.z >= a.z && x.x <= b.x && x.y <= b.y && x.z <= b.z
     }
 }
 
@@ -280,6 +312,35 @@ impl Params {
             } else {
                 Vec::new()
             },
+            ambient_pressure: n.ambient_pressure.unwrap_or(0.0) as f32,
+            outlets: s
+                .outlets
+                .iter()
+                .filter_map(|o| match o.region {
+                    // validation admits boxes only
+                    crate::scenario::Region::Box { min, max } => {
+                        let (mut a, mut b) = (to_sim(min), to_sim(max));
+                        if d == 2 {
+                            (a.z, b.z) = (f32::NEG_INFINITY, f32::INFINITY);
+                        }
+                        Some(OutletRegion {
+                            min: a,
+                            max: b,
+                            pressure: (n.ambient_pressure.unwrap_or(0.0) + o.pressure) as f32,
+                            // validation keeps the suction below k/2
+                            density: if k_l > 0.0 { (rho0_l * (1.0 + o.pressure / k_l)) as f32 } else { rho0_l as f32 },
+                            normal: {
+                                let mut v = Vec3::new(o.normal[0] as f32, o.normal[1] as f32, o.normal[2] as f32);
+                                if d == 2 {
+                                    v.z = 0.0;
+                                }
+                                v.normalize_or_zero()
+                            },
+                        })
+                    }
+                    crate::scenario::Region::Sphere { .. } => None,
+                })
+                .collect(),
             hourglass: n.hourglass.unwrap_or(0.0) as f32,
             reorder_liquid: n.reorder_liquid,
             tether_omega2: tether_omega.powi(2) as f32,
@@ -341,6 +402,12 @@ impl Params {
     /// solid fraction `n_s` (`density_liquid` and its WGSL twin `liquid_may_pull`).
     pub fn liquid_may_pull(&self, x: Vec3, n_s: f32) -> bool {
         n_s < self.liquid_tension_below_ns || self.liquid_tension_in.iter().any(|r| r.contains(x))
+    }
+
+    /// The pressure outlets in effect: none while the suction is held (`Command::SetSuction(false)`,
+    /// `relaxation.hold_suction`), when their buffers' liquid is liquid like any other.
+    pub fn outlets_in_effect(&self, suction_held: bool) -> &[OutletRegion] {
+        if suction_held { &[] } else { &self.outlets }
     }
 
     /// Converts absolute scenario coordinates to simulation coordinates.

@@ -3,7 +3,9 @@
 //! * `density_liquid`: ρˡ by summation over L ∪ B_l (2.46), nˡ = ρ/ρ₀ˡ, nˢ by summation of the solid
 //!   (SPEC D-8), pˡ = k_sat(nˢ + nˡ − 1 + C₁nˢnˡ) (2.53)/(3.5, D-9), clamped at 0 unless
 //!   `liquid_tension` (the liquid sustains no tension; README: deviations from SPEC) and nˢ is below
-//!   `liquid_tension_below_ns` or the particle lies in a `liquid_tension_in` region.
+//!   `liquid_tension_below_ns` or the particle lies in a `liquid_tension_in` region; plus the ambient
+//!   pressure p_a (`numerics.ambient_pressure`) before the clamp; in an outlet's buffer the outlet's
+//!   prescribed p_a + gauge and the density of pure liquid at it instead.
 //! * `density_solid`: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
 //!   nˡ by summation of the liquid (membrane override 1 − nˢ_sat, §3.1.3),
 //!   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); without `sum_liquid` (`density_solid_kept`,
@@ -11,12 +13,13 @@
 
 use super::{BoundarySet, LiquidSet, Nbrs, SolidSet};
 use crate::scenario::SolidFlags;
-use crate::sim::params::Params;
+use crate::sim::params::{OutletRegion, Params};
 use rayon::prelude::*;
 
-/// Returns (ρ, nˢ, p) for every liquid particle.
+/// Returns (ρ, nˢ, p) for every liquid particle; `outlets` are the pressure outlets in effect.
 pub fn density_liquid(
     p: &Params,
+    outlets: &[OutletRegion],
     l: &LiquidSet,
     s: &SolidSet,
     b: &BoundarySet,
@@ -42,11 +45,14 @@ pub fn density_liquid(
             });
             let n_s = sum_s / p.rho0_s;
             let n_l = rho / p.rho0_l;
-            let raw = p.k_l * (n_s + n_l - 1.0 + p.c1 * n_s * n_l);
-            // (2.53) clamped at 0 unless the liquid may take tension here (`liquid_tension_below_ns`,
-            // `liquid_tension_in`)
-            let pr = if p.liquid_may_pull(xi, n_s) { raw } else { raw.max(0.0) };
-            (rho, n_s, pr)
+            let raw = p.ambient_pressure + p.k_l * (n_s + n_l - 1.0 + p.c1 * n_s * n_l);
+            // p_a + (2.53) clamped at 0 unless the liquid may take tension here (`liquid_tension_below_ns`,
+            // `liquid_tension_in`); an outlet's buffer carries its prescribed pressure and density
+            match OutletRegion::find(outlets, xi) {
+                Some(o) => (o.density, n_s, o.pressure),
+                None if p.liquid_may_pull(xi, n_s) => (rho, n_s, raw),
+                None => (rho, n_s, raw.max(0.0)),
+            }
         })
         .collect();
     let mut rho = Vec::with_capacity(out.len());

@@ -10,7 +10,7 @@
 
 use super::{BoundarySet, LiquidSet, Nbrs, ObjectContact, SolidSet};
 use crate::scenario::SolidFlags;
-use crate::sim::params::Params;
+use crate::sim::params::{OutletRegion, Params};
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
@@ -22,6 +22,8 @@ pub struct ForceCtx<'a> {
     pub contacts: &'a [ObjectContact],
     /// During relaxation with `gravity_solid_only`, the liquid feels no gravity.
     pub gravity_liquid: bool,
+    /// The pressure outlets in effect (`Params::outlets_in_effect`).
+    pub outlets: &'a [OutletRegion],
 }
 
 /// Acceleration of solid particle i from the hourglass control of bond (i, j) (`numerics.hourglass`,
@@ -319,6 +321,9 @@ impl WallContact {
 /// (wall particle or membrane particle) of liquid-equivalent mass m_b (SPEC §4.1, §3.6). In mirror mode
 /// the wall shows ρ_b = ρ_i and the hydrostatically extrapolated p_b = max(p_i + ρ_i g·(x_b − x_i), 0)
 /// (Adami, Hu & Adams 2012; README: deviations from SPEC), so a wall carries the weight above it.
+/// `outside`: the pressure on the boundary particle's far side, taken off the mirror's bracket as
+/// 2·outside/ρ² — 0 for the force on the liquid, the ambient p_a for the reaction on a capsule
+/// particle (`numerics.ambient_pressure`: the air outside balances p_a of the blood inside).
 #[inline]
 pub fn liquid_from_boundary(
     p: &Params,
@@ -333,12 +338,13 @@ pub fn liquid_from_boundary(
     mode: ObjectContact,
     no_slip: f32,
     g: Vec3,
+    outside: f32,
 ) -> Vec3 {
     let k = &p.k_liquid;
     let grad = xib * k.grad_spiky_factor(r);
     let bracket = if mode.density < 0.0 {
         let pb = (pr + rho * g.dot(-xib)).max(0.0);
-        (pr.max(0.0) + pb) / (rho * rho)
+        (pr.max(0.0) + pb - 2.0 * outside) / (rho * rho)
     } else {
         pr / (rho * rho) + mode.pressure / (mode.density * mode.density)
     };
@@ -404,6 +410,12 @@ pub fn forces_liquid(
         .with_min_len(super::MIN_PAR_LEN)
         .map(|i| {
             let (xi, vi, rho, pr, n_l, n_s) = (l.x[i], l.v[i], l.rho[i], l.p[i], l.n_l[i], l.n_s[i]);
+            if let Some(o) = OutletRegion::find(c.outlets, xi) {
+                // an outlet's buffer feels no force; evaluation 0 gives it the velocity of the liquid
+                // around it as its ṽ (the predictor makes it its v: `integrate_predict`)
+                let u = if xsph { outlet_velocity(p, o, c.outlets, l, nb, i) } else { vi };
+                return (Vec3::ZERO, u);
+            }
             let pi = pr / (rho * rho);
             let inv_m = 1.0 / l.m[i];
             let mut a = Vec3::ZERO;
@@ -447,7 +459,7 @@ pub fn forces_liquid(
             nb.boundary.for_each(xi, kl.r, |j, xij, r| {
                 let obj = b.object[j] as usize;
                 let slip = no_slip_factor(&c.geoms[obj], xi, b.x[j]);
-                a += liquid_from_boundary(p, rho, pr, n_l, vi, b.m_l[j], b.v[j], xij, r, c.contacts[obj], slip, g);
+                a += liquid_from_boundary(p, rho, pr, n_l, vi, b.m_l[j], b.v[j], xij, r, c.contacts[obj], slip, g, 0.0);
                 if p.cohesion_lb > 0.0 && r > 0.0 {
                     // Adhesion (3.3) to walls and plates.
                     a -= xij * (cohesion_pair(p.cohesion_lb, kl.r, r) * inv_m / r);
@@ -470,6 +482,7 @@ pub fn forces_liquid(
                         ObjectContact::MIRROR,
                         1.0,
                         g,
+                        0.0,
                     );
                 }
                 if p.kbar > 0.0 {
@@ -488,6 +501,38 @@ pub fn forces_liquid(
         })
         .unzip();
     (a, xsph.then_some(vx))
+}
+
+/// Velocity of a liquid particle i in outlet `o`'s buffer: along the outlet's normal, the normal part
+/// of the Shepard mean Σ v_j W6 / Σ W6 over the open liquid within R_l (outside every buffer; after
+/// Tafuni et al. 2018's first-order extrapolation), or, for the buffer's far rows beyond R_l of the
+/// open liquid, over all the other liquid within R_l (so that they follow the rows below them rather
+/// than keep their velocity), or of v_i when none is near. Along the normal only, so that the buffer,
+/// which feels no force, keeps the lattice it was filled with instead of drifting into a disorder whose
+/// kernel sums would misstate the prescribed pressure. Twin of `outlet_velocity` in forces.wgsl.
+fn outlet_velocity(p: &Params, o: &OutletRegion, outlets: &[OutletRegion], l: &LiquidSet, nb: &Nbrs, i: usize) -> Vec3 {
+    let kl = &p.k_liquid;
+    let (mut sum_w, mut sum_v) = (0.0f32, Vec3::ZERO);
+    let (mut all_w, mut all_v) = (0.0f32, Vec3::ZERO);
+    nb.liquid.for_each(l.x[i], kl.r, |j, _, r| {
+        if j != i {
+            let w = kl.w_poly6(r);
+            all_w += w;
+            all_v += l.v[j] * w;
+            if OutletRegion::find(outlets, l.x[j]).is_none() {
+                sum_w += w;
+                sum_v += l.v[j] * w;
+            }
+        }
+    });
+    let v = if sum_w > 0.0 {
+        sum_v / sum_w
+    } else if all_w > 0.0 {
+        all_v / all_w
+    } else {
+        l.v[i]
+    };
+    o.normal * v.dot(o.normal)
 }
 
 /// ṽ = v + ε̃ d of XSPH (2.69) (v itself when ε̃ = 0).
@@ -637,6 +682,7 @@ pub fn forces_solid(
                             ObjectContact::MIRROR,
                             1.0,
                             g_l,
+                            p.ambient_pressure,
                         );
                         fm -= on_j * l.m[j];
                     }

@@ -7,24 +7,31 @@ use super::CpuState;
 use super::forces::{ObjectGeom, box_exit};
 use crate::scenario::SolidFlags;
 use crate::sim::bed::{self, BedTable};
-use crate::sim::params::Params;
+use crate::sim::params::{OutletRegion, Params};
 use glam::Vec3;
 use rayon::prelude::*;
 
 /// integrate_predict: a⁰ ← a, D⁰ ← D, solid increments Δx = Δt ṽ + ½Δt²a⁰, v^p = vⁿ + Δt a⁰ (2.64).
 /// Positions and solid densities are advanced by `integrate_advance`, after the F update has read xⁿ, ρⁿ.
-/// Liquid inside an inlet's buffer (`emit::inlet_velocity`) moves with the buffer, unaccelerated.
+/// Liquid inside an inlet's buffer (`emit::inlet_velocity`) moves with the buffer, unaccelerated;
+/// liquid inside an outlet's buffer takes the Shepard velocity that evaluation 0 left in ṽ
+/// (`forces::forces_liquid`), unaccelerated.
 pub fn integrate_predict(p: &Params, st: &mut CpuState, dt: f32, _t_next: f64) {
     let half_dt2 = 0.5 * dt * dt;
     let three_d = p.dim.n() == 3;
+    let outlets = p.outlets_in_effect(st.suction_held);
     let l = &mut st.liquid;
     let emit = &st.emit;
-    let x = &l.x;
+    let (x, vx) = (&l.x, &l.vx);
     l.a0.par_iter_mut().zip(l.a.par_iter()).zip(l.v.par_iter_mut()).enumerate().for_each(|(i, ((a0, a), v))| {
         match super::emit::inlet_velocity(emit, x[i], three_d) {
             Some(u) => {
                 *a0 = Vec3::ZERO;
                 *v = u;
+            }
+            None if OutletRegion::find(outlets, x[i]).is_some() => {
+                *a0 = Vec3::ZERO;
+                *v = vx[i];
             }
             None => {
                 *a0 = *a;

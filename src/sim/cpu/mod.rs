@@ -17,7 +17,7 @@ pub mod grid;
 pub mod integrate;
 pub mod solid;
 
-use super::params::Params;
+use super::params::{OutletRegion, Params};
 use super::state::{BoundaryState, PhaseState, SolidExtra, State};
 use super::{Command, SimError, StepInfo};
 use crate::scenario::{BoundaryObject, GeneratedParticles, Motion, SolidFlags, motion_at};
@@ -301,8 +301,9 @@ impl CpuSolver {
             .map(|o| {
                 let (density, pressure) = match o.pressure {
                     crate::scenario::PressureMode::Mirror => (-1.0, 0.0),
+                    // a gauge pressure, shown to the liquid above its ambient pressure
                     crate::scenario::PressureMode::Prescribed { density, pressure } => {
-                        (density as f32, pressure as f32)
+                        (density as f32, (pressure + f64::from(params.ambient_pressure)) as f32)
                     }
                 };
                 ObjectContact { density, pressure, friction: o.friction.map_or(-1.0, |mu| mu as f32) }
@@ -437,6 +438,11 @@ impl CpuSolver {
     }
 
     /// One force evaluation (SPEC §5.2 step 3/7): densities, fractions, pressures, stresses, forces.
+    /// The pressure outlets in effect (none while the suction is held).
+    fn outlets(&self) -> &[OutletRegion] {
+        self.params.outlets_in_effect(self.st.suction_held)
+    }
+
     fn evaluate(&mut self, with_xsph: bool) {
         let t0 = std::time::Instant::now();
         let p = &self.params;
@@ -445,8 +451,9 @@ impl CpuSolver {
             solid: self.neighbours(Set::Solid),
             boundary: self.neighbours(Set::Boundary),
         };
-        let liquid_pass = (self.liquid_density_generation != Some(self.grid_generation))
-            .then(|| density::density_liquid(p, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb));
+        let liquid_pass = (self.liquid_density_generation != Some(self.grid_generation)).then(|| {
+            density::density_liquid(p, self.outlets(), &self.st.liquid, &self.st.solid, &self.st.boundary, &nb)
+        });
         // A skeleton held entirely still (Brinkman) needs no continuity, stress, F, forces or fracture:
         // nothing reads them (its ρ is not integrated, and nˢ = ρ/ρ₀ stays as initialised) — unless the
         // liquid–void attraction (3.4) reads its nˡ (a fixed fabric).
@@ -491,6 +498,7 @@ impl CpuSolver {
             gravity: self.st.gravity,
             contacts: &contacts,
             gravity_liquid: !(self.st.damping > 0.0 && self.st.damping_solid_gravity_only),
+            outlets: self.outlets(),
         };
         let (a_l, vx_l) =
             forces::forces_liquid(&ctx, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb, with_xsph);
@@ -720,7 +728,11 @@ impl CpuSolver {
                 self.move_boundaries(*t);
                 self.build_grids();
             }
-            Command::SetSuction(on) => self.st.suction_held = !on,
+            Command::SetSuction(on) => {
+                self.st.suction_held = !on;
+                // outlets prescribe the liquid's pressure only while the suction acts
+                self.liquid_density_generation = None;
+            }
             Command::SetInflow { emitter, times, rates } => {
                 let table = crate::sim::inflow_table(times, rates)?;
                 let em = self
@@ -949,7 +961,8 @@ mod tests {
                 solid: s.neighbours(Set::Solid),
                 boundary: s.neighbours(Set::Boundary),
             };
-            let (rho, n_s, p) = density::density_liquid(&s.params, &s.st.liquid, &s.st.solid, &s.st.boundary, &nb);
+            let (rho, n_s, p) =
+                density::density_liquid(&s.params, &s.params.outlets, &s.st.liquid, &s.st.solid, &s.st.boundary, &nb);
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&rho), bits(&s.st.liquid.rho), "ρ at step {}", s.st.steps);
             assert_eq!(bits(&n_s), bits(&s.st.liquid.n_s), "nˢ at step {}", s.st.steps);

@@ -4,7 +4,7 @@
 //! vectors travel as `[f32; 4]` (STYLE §5.4).
 
 use super::super::params::{Params, TensionRegion};
-use crate::scenario::MAX_TENSION_REGIONS;
+use crate::scenario::{MAX_OUTLETS, MAX_TENSION_REGIONS};
 use crate::sim::kernels::{Dim, Kernel};
 use bytemuck::{Pod, Zeroable};
 use std::mem::{offset_of, size_of};
@@ -58,6 +58,9 @@ pub struct SimParams {
     /// `Params::liquid_tension_in`, two vec4s per region: box (min, 1) (max, 0), sphere (centre, 2)
     /// (0, 0, 0, r²), unused (0, 0, 0, 0) twice.
     pub tension: [[f32; 4]; 2 * MAX_TENSION_REGIONS],
+    /// `Params::outlets_in_effect`, three vec4s per outlet: (min, density) (max, absolute pressure)
+    /// (normal, 0); none: zeros.
+    pub outlet: [[f32; 4]; 3 * MAX_OUTLETS],
     pub rho0_l: f32,
     pub rho0_s: f32,
     pub eta: f32,
@@ -115,7 +118,7 @@ pub struct SimParams {
     pub ap_eps: f32,
     pub ap_exp: i32,
     pub wc_dx_l: f32,
-    pub _pad0: f32,
+    pub ambient_pressure: f32,
     pub _pad1: f32,
 }
 
@@ -130,8 +133,16 @@ pub struct Counts {
 }
 
 impl SimParams {
-    /// The uniform block for `p`; `gravity`, `damping`, `gravity_liquid` are the command-set values.
-    pub fn new(p: &Params, c: Counts, gravity: glam::Vec3, damping: f32, gravity_liquid: bool) -> SimParams {
+    /// The uniform block for `p`; `gravity`, `damping`, `gravity_liquid`, `suction_held` are the
+    /// command-set values.
+    pub fn new(
+        p: &Params,
+        c: Counts,
+        gravity: glam::Vec3,
+        damping: f32,
+        gravity_liquid: bool,
+        suction_held: bool,
+    ) -> SimParams {
         let v4 = |v: glam::Vec3| [v.x, v.y, v.z, 0.0];
         let per = p.periodic_len();
         SimParams {
@@ -161,6 +172,15 @@ impl SimParams {
                             ([centre.x, centre.y, centre.z, 2.0], [0.0, 0.0, 0.0, radius * radius])
                         }
                     };
+                }
+                t
+            },
+            outlet: {
+                let mut t = [[0.0; 4]; 3 * MAX_OUTLETS];
+                for (k, o) in p.outlets_in_effect(suction_held).iter().take(MAX_OUTLETS).enumerate() {
+                    t[3 * k] = [o.min.x, o.min.y, o.min.z, o.density];
+                    t[3 * k + 1] = [o.max.x, o.max.y, o.max.z, o.pressure];
+                    t[3 * k + 2] = [o.normal.x, o.normal.y, o.normal.z, 0.0];
                 }
                 t
             },
@@ -214,7 +234,7 @@ impl SimParams {
             ap_eps: p.ap_eps,
             ap_exp: p.ap_exp,
             wc_dx_l: p.wc_dx_l,
-            _pad0: 0.0,
+            ambient_pressure: p.ambient_pressure,
             _pad1: 0.0,
         }
     }
@@ -434,9 +454,11 @@ pub struct GridSet {
 }
 
 const _: () = assert!(size_of::<KernelConsts>() == 32);
-const _: () = assert!(size_of::<SimParams>() == 576);
+const _: () = assert!(size_of::<SimParams>() == 672);
 // common.wgsl's `tension: array<vec4<f32>, 8>` and density.wgsl's loop over 4 regions
 const _: () = assert!(MAX_TENSION_REGIONS == 4);
+// common.wgsl's `outlet: array<vec4<f32>, 6>` and outlet_find's loop over 2 outlets
+const _: () = assert!(MAX_OUTLETS == 2);
 const _: () = assert!(size_of::<StepState>() == 48);
 const _: () = assert!(size_of::<ObjectGpu>() == 96);
 const _: () = assert!(size_of::<Mat3Gpu>() == 48);
@@ -467,6 +489,8 @@ pub const LAYOUTS: &[StructLayout] = &[
             ("grid_min", offset_of!(SimParams, grid_min)),
             ("switches", offset_of!(SimParams, switches)),
             ("tension", offset_of!(SimParams, tension)),
+            ("outlet", offset_of!(SimParams, outlet)),
+            ("ambient_pressure", offset_of!(SimParams, ambient_pressure)),
             ("rho0_l", offset_of!(SimParams, rho0_l)),
             ("as_exp", offset_of!(SimParams, as_exp)),
             ("fixed_dt", offset_of!(SimParams, fixed_dt)),

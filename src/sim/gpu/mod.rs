@@ -314,7 +314,7 @@ impl GpuSolver {
             data.resize(elem * capacity as usize, 0);
         }
         let gravity_liquid = !(st.damping > 0.0 && st.damping_solid_gravity_only);
-        let sp = SimParams::new(&params, counts, st.gravity, st.damping, gravity_liquid);
+        let sp = SimParams::new(&params, counts, st.gravity, st.damping, gravity_liquid, st.suction_held);
         solver_init.push((Slot::Params, bytes(&[sp])));
         solver_init.push((Slot::Step, bytes(&[StepState::default()])));
         let modes = contacts_in_effect(&cpu.contacts, st.suction_held);
@@ -601,7 +601,8 @@ impl GpuSolver {
     fn upload_params(&mut self) -> Result<(), GpuError> {
         self.liquid_density_fresh = false;
         let gravity_liquid = !(self.damping > 0.0 && self.damping_solid_gravity_only);
-        let sp = SimParams::new(&self.params, self.counts, self.gravity, self.damping, gravity_liquid);
+        let sp =
+            SimParams::new(&self.params, self.counts, self.gravity, self.damping, gravity_liquid, self.suction_held);
         self.ctx.queue.write_buffer(self.buffer(Slot::Params)?, 0, bytemuck::bytes_of(&sp));
         Ok(())
     }
@@ -1264,6 +1265,7 @@ impl GpuSolver {
             }
             Command::SetSuction(on) => {
                 self.suction_held = !on;
+                self.upload_params()?; // the outlets in effect (and a fresh liquid density pass)
                 self.upload_objects(self.t)?;
                 self.upload_motions()?;
                 if let Some(b) = self.buffers.get(Slot::EmitState, None) {

@@ -189,7 +189,7 @@ pub const DT_FINALIZE: PassSpec =
 pub const INTEGRATE_PREDICT_LIQUID: PassSpec = pass(
     "integrate_predict_liquid",
     "integrate",
-    &[Params, Step, LiquidPos, LiquidVel, LiquidAcc, LiquidAcc0, EmitState],
+    &[Params, Step, LiquidPos, LiquidVel, LiquidVelAdv, LiquidAcc, LiquidAcc0, EmitState],
     Dispatch::Liquid,
 );
 pub const INTEGRATE_PREDICT_SOLID: PassSpec = pass(
