@@ -235,35 +235,46 @@ fn relaxation_holds_the_suction_until_t0() {
     assert!(sim.emit_totals().expect("totals").sunk as usize >= waiting, "released at t = 0");
 }
 
+/// The channel with a pressure outlet at −500 Pa (`outlets`) over its last 1.5 cm, before the sink: its
+/// buffer moves along +x.
+fn channel_with_outlet() -> Scenario {
+    let text = CHANNEL.replace(
+        "    duration: 0.5,",
+        "    outlets: [ Outlet(name: \"suction\", region: Box(min: (0.03, 0.0, 0.0), max: (0.045, 0.02, 0.0)), \
+         pressure: -500.0, normal: (1.0, 0.0, 0.0)) ],\n    duration: 0.5,",
+    );
+    assert_ne!(text, CHANNEL);
+    Scenario::from_str_named(&text, "channel with an outlet (test)").expect("scenario")
+}
+
 /// The GPU back-end holds and releases the suction as the CPU reference: the same particles, none
-/// sunk while held, the same ones sunk after.
+/// sunk while held, the same ones sunk after — with a prescribed-pressure wall, and with an outlet
+/// (its pressure and buffer off while held: `SimParams::outlet`).
 #[test]
 fn gpu_holds_the_suction_like_the_cpu() {
     gpu_test("gpu_holds_the_suction_like_the_cpu", |ctx| {
-        let scn = channel_with_suction();
-        let mut cpu = Simulation::new(&scn, BackendKind::Cpu).expect("cpu");
-        let mut gpu = Simulation::with_gpu(&scn, Some(ctx)).expect("gpu");
-        for (t, on) in [(0.2, false), (0.25, true)] {
-            for s in [&mut cpu, &mut gpu] {
-                s.apply(&Command::SetSuction(on)).expect("valve");
-                run_to(s, t);
-            }
-            let (ec, eg) = (cpu.emit_totals().expect("cpu"), gpu.emit_totals().expect("gpu"));
-            assert_eq!((ec.emitted, ec.sunk), (eg.emitted, eg.sunk), "t = {t}");
-            assert_eq!(
-                ec.sunk == 0,
-                !on,
-                "t = {t}: {} sunk with the suction {}",
-                ec.sunk,
-                if on { "on" } else { "held" }
-            );
-            let (sc, sg) = (cpu.read_state().expect("cpu"), gpu.read_state().expect("gpu"));
-            assert_eq!(sc.liquid.id, sg.liquid.id, "same particles, same order");
-            let dmax = sc.liquid.pos.iter().zip(&sg.liquid.pos).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
-            println!("t = {t}, suction {on}: {} sunk, max |x_gpu − x_cpu| = {dmax:.3e} m", ec.sunk);
-            assert!(dmax < 5e-2 * 0.0025, "positions differ by {dmax} m");
-        }
+        holds_like_the_cpu(&ctx, &channel_with_suction(), "prescribed wall");
+        holds_like_the_cpu(&ctx, &channel_with_outlet(), "outlet");
     });
+}
+
+fn holds_like_the_cpu(ctx: &perfuse::sim::gpu::GpuContext, scn: &Scenario, what: &str) {
+    let mut cpu = Simulation::new(scn, BackendKind::Cpu).expect("cpu");
+    let mut gpu = Simulation::with_gpu(scn, Some(ctx.clone())).expect("gpu");
+    for (t, on) in [(0.2, false), (0.25, true)] {
+        for s in [&mut cpu, &mut gpu] {
+            s.apply(&Command::SetSuction(on)).expect("valve");
+            run_to(s, t);
+        }
+        let (ec, eg) = (cpu.emit_totals().expect("cpu"), gpu.emit_totals().expect("gpu"));
+        assert_eq!((ec.emitted, ec.sunk), (eg.emitted, eg.sunk), "t = {t}");
+        assert_eq!(ec.sunk == 0, !on, "t = {t}: {} sunk with the suction {}", ec.sunk, if on { "on" } else { "held" });
+        let (sc, sg) = (cpu.read_state().expect("cpu"), gpu.read_state().expect("gpu"));
+        assert_eq!(sc.liquid.id, sg.liquid.id, "same particles, same order");
+        let dmax = sc.liquid.pos.iter().zip(&sg.liquid.pos).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+        println!("{what}: t = {t}, suction {on}: {} sunk, max |x_gpu − x_cpu| = {dmax:.3e} m", ec.sunk);
+        assert!(dmax < 5e-2 * 0.0025, "positions differ by {dmax} m");
+    }
 }
 
 /// A 3-D square duct fed by the patient's hepatic arterial flow (`Flow::Hepatic`, volume scale 4):

@@ -268,13 +268,14 @@ fn liver_scalpel_hangs_the_liver_under_the_blade_over_the_plate() {
 }
 
 /// `syringe.ron` (thesis §4.2.3, SPEC §7.8) at 12³/11³ — the coarsest lattice on which SPEC's set-up,
-/// given in lattice spacings, still fits a primed barrel below the sink — for 0.04 s without the
-/// relaxation and without gravity: the primed syringe's suction draws blood out of the tissue into the
-/// needle, and no blood leaks elsewhere. What this short run cannot show, and does not assert: SPEC's
-/// monotone growth from 0.1 s on in 0.05-s bins (the first 0.02 s are a transient of a few particles
-/// each way at the tip, where the primed blood meets the tissue's), the 0.5 % at 2 s, and the tissue's
-/// displacement toward the tip (printed; of order 10⁻⁵ m here). Those are the rows of
-/// `perfuse validate --case syringe --quick` (2 s at this lattice, hours on two cores).
+/// given in lattice spacings, still fits the needle and barrel — for 0.04 s without the relaxation and
+/// without gravity: the syringe's outlet in the needle's bore draws blood out of the tissue, the drawn
+/// volume never falls between 0.01-s samples, passes SPEC §7.8 (1)'s 0.5 % of the specimen's blood
+/// (the threshold SPEC sets at 2 s), the tissue within 3Δx_s of the tip moves toward it (SPEC (2)), and
+/// no blood leaks elsewhere (SPEC (3)). With SPEC's disc over a sink at the barrel's top instead, the
+/// same run drew 6.2·10⁻⁷ m³ (≈ 16 particles) after a transient of a few particles each way at the
+/// tip, and the column under tension parted later (README: `syringe.ron` under Validation). The 2-s
+/// rows from 0.1 s in 0.05-s bins are `perfuse validate --case syringe --quick` (hours on two cores).
 #[test]
 fn syringe_draws_blood_out_of_the_tissue() {
     use perfuse::analysis::syringe::{Geometry, run, scenario_ron};
@@ -294,7 +295,14 @@ fn syringe_draws_blood_out_of_the_tissue() {
     // one perfusing particle carries n₀Δx_l³ = 0.4 (L_c/11)³ of blood
     let particle = 0.4 * (0.05f64 / 11.0).powi(3);
     let end = o.drawn.last().expect("samples").1;
-    assert!(end >= 4.0 * particle, "drawn volume at the end: {end:.3e} m³ ({:.1} particles)", end / particle);
+    eprintln!(
+        "drawn at the end: {:.1} particles, {:.2} % of the specimen's blood",
+        end / particle,
+        100.0 * end / o.liquid_volume
+    );
+    assert!(o.drawn_largest_drop <= 0.0, "the drawn volume fell by {:.3e} m³", o.drawn_largest_drop);
+    assert!(end >= 0.005 * o.liquid_volume, "drawn volume at the end: {end:.3e} m³ ({:.1} particles)", end / particle);
+    assert!(o.toward_tip > 0.0, "the tissue at the tip moved {:.3e} m toward it", o.toward_tip);
     assert!(o.leaked_max <= 0.01, "leaked {:.4} of the liquid", o.leaked_max);
     assert_eq!(o.invariants_failed, 0);
 }

@@ -7,18 +7,22 @@
 //! the CI test write a coarser one. The needle and the barrel are square tubes of box-shaped boundary
 //! objects (a bore of half-width 2Δx_l instead of a round one of radius 2Δx_l: the lattices are
 //! square anyway). The needle's footprint is a `cavity`: the needle pierced the capsule, so neither
-//! tissue, capsule nor perfusing blood remains in it, and no bond crosses it. The syringe is primed:
-//! pure blood (n₀ = 1) fills the bore and the barrel up to the sink, so that the suction disc's low
-//! pressure reaches the tip through the liquid, as in a real syringe drawing blood (SPH transmits no
-//! pressure across empty space: unprimed, the bore's blood just ran out of the tip at 8³). Only the
-//! syringe's blood and the tissue's at the tip carry that tension — the free blood
-//! (`liquid_tension_below_ns` 0.05), the bore's column down to the tip and a sphere of radius
-//! [`TIP_TENSION_RADIUS`] around the tip (`liquid_tension_in`) — while the blood by the capsule keeps
-//! (2.53)'s clamp at 0: with tension everywhere the perfused tissue's blood went into SPH's tensile
-//! instability and burst through the capsule (README: `syringe.ron` under Validation).
+//! tissue, capsule nor perfusing blood remains in it, and no bond crosses it.
 //!
-//! Acceptance (SPEC §7.8): (1) the drawn volume — liquid sunk below the suction disc plus liquid in the
-//! needle's bore and the barrel, less what was there at t = 0 — never falls between 0.05-s bins after
+//! The suction is a pressure outlet (scenario `outlets`; README: deviations from SPEC) whose buffer is
+//! the needle's bore, primed with pure blood (n₀ = 1): its blood shows the tissue's blood at the tip
+//! the syringe's −5 kPa, feels no force, and moves up the bore as the blood at the tip does, into a sink
+//! where the bore opens into the barrel. SPEC's suction disc over a sink at the barrel's top needed a
+//! primed column of blood under tension from the disc down to the tip, and an SPH column under tension
+//! parts: the primed barrel was sucked into the sink within 0.05 s and the draw stopped (README:
+//! `syringe.ron` under Validation). The barrel stays, closed by a plain plunger where the disc was. Only
+//! the tissue's blood within [`TIP_TENSION_RADIUS`] of the tip (`liquid_tension_in`) may take tension,
+//! so that the suction reaches into the tissue, while the blood by the capsule keeps (2.53)'s clamp at
+//! 0: with tension everywhere the perfused tissue's blood went into SPH's tensile instability and burst
+//! through the capsule.
+//!
+//! Acceptance (SPEC §7.8): (1) the drawn volume — liquid sunk plus liquid in the needle's bore and the
+//! barrel, less what was there at t = 0 — never falls between 0.05-s bins after
 //! 0.1 s and exceeds 0.5 % of the specimen's liquid volume at the end; (2) the solid within 3Δx_s of
 //! the needle tip moves toward the tip on average; (3) liquid outside the tissue and outside the
 //! syringe stays ≤ 1 % of the liquid.
@@ -35,12 +39,12 @@ use std::time::Instant;
 pub const SYRINGE: &str = include_str!("../../assets/scenarios/syringe.ron");
 /// Cube side L_c [m] (SPEC §7.5's specimen).
 pub const L_C: f64 = 0.05;
-/// Suction pressure of the disc [Pa] (SPEC §7.8).
+/// Suction [Pa] (SPEC §7.8's disc; here the outlet's gauge pressure in the needle's bore).
 pub const SUCTION: f64 = -5000.0;
 /// Radius [m] of the tissue around the needle tip whose blood may take tension (`liquid_tension_in`):
 /// L_c/5, 6.7 mm clear of the capsule's top face (L_c/3 above the tip).
 pub const TIP_TENSION_RADIUS: f64 = L_C / 5.0;
-/// Depth of the sink below the disc [Δx_l] (SPEC §7.8: 2).
+/// Depth of the sink above the bore's top [Δx_l] (SPEC §7.8: 2 below the disc).
 pub const SINK_DEPTH: f64 = 0.5;
 
 /// SPEC §7.8's syringe for an ns³ solid / nl³ liquid specimen (all lengths in metres, scenario
@@ -62,7 +66,7 @@ pub struct Geometry {
     pub z_bottom: f64,
     pub z_disc: f64,
     pub z_top: f64,
-    /// Bottom of the sink (the primed barrel's liquid reaches up to it).
+    /// Top of the bore, where it opens into the barrel: the outlet's buffer ends and the sink begins.
     pub z_sink: f64,
 }
 
@@ -83,7 +87,7 @@ impl Geometry {
             z_bottom: L_C + 0.002,
             z_disc: L_C + 0.025,
             z_top: L_C + 0.030,
-            z_sink: L_C + 0.025 - SINK_DEPTH * dx_l,
+            z_sink: L_C + 0.002 + wall,
         }
     }
 
@@ -107,7 +111,7 @@ impl Geometry {
             || (within(self.barrel_in) && p[2] >= self.z_bottom && p[2] <= self.z_disc)
     }
 
-    /// The boundary objects: (name, min, max); the suction disc is the last.
+    /// The boundary objects: (name, min, max); the plunger (SPEC's suction disc, here a plain wall) is the last.
     fn boxes(&self) -> Vec<(String, [f64; 3], [f64; 3])> {
         let (a, n, ai, ao, w) = (self.bore, self.needle_out, self.barrel_in, self.barrel_out, self.wall);
         // Four walls of a square tube between half-widths `inner` and `outer` over z0..z1.
@@ -123,7 +127,7 @@ impl Geometry {
         // The barrel's floor: a square ring from the needle's outside to the barrel's inside.
         b.extend(tube("barrel floor", n, ai, self.z_bottom, self.z_bottom + w));
         b.extend(tube("barrel", ai, ao, self.z_bottom, self.z_top));
-        b.push(("suction disc".into(), [-ai, -ai, self.z_disc], [ai, ai, self.z_disc + w]));
+        b.push(("plunger".into(), [-ai, -ai, self.z_disc], [ai, ai, self.z_disc + w]));
         b
     }
 }
@@ -144,12 +148,13 @@ pub fn scenario_ron(ns: u32, nl: u32, duration: f64) -> String {
          // gravity, relaxed) with a needle through its capsule: a square tube of boundary particles (bore half-width\n\
          // 2Δx_l, walls 3 layers at Δx_s/2), its tip L_c/3 below the top face, its footprint a `cavity` (the needle\n\
          // pierced the capsule: no tissue, capsule, perfusing blood or bond is left in or across it). Above, the\n\
-         // barrel (half-width 6Δx_l, z = L_c + 2 mm … L_c + 30 mm, closed at the bottom but for the needle's bore),\n\
-         // and a suction disc at z = L_c + 25 mm whose particles show the liquid a prescribed pressure of −5 kPa\n\
-         // (SPEC §4.1's prescribed mode); the sink just below it removes the drawn blood. The syringe is primed:\n\
-         // pure blood (fraction 1) fills the bore and the barrel up to the sink, so the suction reaches the tip\n\
-         // through the liquid; the suction is held while the specimen relaxes\n\
-         // and draws from t = 0. Units: SI.\n"
+         // barrel (half-width 6Δx_l, z = L_c + 2 mm … L_c + 30 mm, closed at the bottom but for the needle's bore,\n\
+         // and at z = L_c + 25 mm by the plunger). The suction (−5 kPa) is an outlet: the needle's bore, primed\n\
+         // with pure blood (fraction 1), is its buffer, whose blood shows the tissue's blood at the tip the\n\
+         // syringe's pressure, feels no force and moves up the bore as the blood below it does, into a sink\n\
+         // where the bore opens into the barrel (README: \"Pressure outlets\"; SPEC §7.8's disc over a sink\n\
+         // parts a column of blood under tension). The suction is held while the specimen relaxes and draws\n\
+         // from t = 0. Units: SI.\n"
     );
     let _ = writeln!(s, "Scenario(");
     let _ = writeln!(s, "    name: \"syringe\",");
@@ -178,20 +183,13 @@ pub fn scenario_ron(ns: u32, nl: u32, duration: f64) -> String {
     let _ = writeln!(s, "        xsph: Xsph(solid: 0.5, liquid: 0.0),");
     let _ = writeln!(
         s,
-        "        // the suction reaches the tip only through blood under tension (SPEC (2.53) unclamped): the syringe's\n\
-         \x20       // free blood (nˢ < 0.05), the bore's column down to the tip and the tissue's blood within L_c/5 of the\n\
-         \x20       // tip, not the blood by the capsule, where tension bursts it out (README: syringe.ron under Validation)"
+        "        // the suction reaches into the tissue through its blood around the tip, which may take tension\n\
+         \x20       // (SPEC (2.53) unclamped) within L_c/5 of the tip; not the blood by the capsule, where tension bursts\n\
+         \x20       // it out (README: syringe.ron under Validation)"
     );
     let _ = writeln!(s, "        liquid_tension: true,");
-    let _ = writeln!(s, "        liquid_tension_below_ns: Some(0.05),");
-    let _ = writeln!(
-        s,
-        "        liquid_tension_in: [Box(min: {}, max: {}), Sphere(centre: {}, radius: {:?})],",
-        v([-g.bore, -g.bore, g.z_tip]),
-        v([g.bore, g.bore, g.z_disc]),
-        v(g.tip()),
-        TIP_TENSION_RADIUS
-    );
+    let _ =
+        writeln!(s, "        liquid_tension_in: [Sphere(centre: {}, radius: {:?})],", v(g.tip()), TIP_TENSION_RADIUS);
     let _ = writeln!(s, "        dt_min: 1e-9,");
     let _ = writeln!(s, "        dt_max: 1e-3,");
     let _ = writeln!(s, "    ),");
@@ -203,18 +201,12 @@ pub fn scenario_ron(ns: u32, nl: u32, duration: f64) -> String {
         v([-h, -h, 0.0]),
         v([h, h, L_C])
     );
-    let _ = writeln!(s, "        // the primed syringe: pure blood in the bore and in the barrel below the sink");
+    let _ = writeln!(s, "        // the primed needle: pure blood in the bore (the outlet's buffer)");
     let _ = writeln!(
         s,
         "        Box(phase: Liquid, min: {}, max: {}, fraction: 1.0),",
         v([-g.bore, -g.bore, g.z_tip]),
-        v([g.bore, g.bore, g.z_bottom + g.wall])
-    );
-    let _ = writeln!(
-        s,
-        "        Box(phase: Liquid, min: {}, max: {}, fraction: 1.0),",
-        v([-g.barrel_in, -g.barrel_in, g.z_bottom + g.wall]),
-        v([g.barrel_in, g.barrel_in, g.z_sink])
+        v([g.bore, g.bore, g.z_sink])
     );
     let _ = writeln!(s, "    ],");
     let _ = writeln!(s, "    boundaries: [");
@@ -226,20 +218,21 @@ pub fn scenario_ron(ns: u32, nl: u32, duration: f64) -> String {
     );
     let spacing = r(0.5 * g.dx_s);
     let boxes = g.boxes();
-    let last = boxes.len() - 1;
-    for (k, (name, min, max)) in boxes.into_iter().enumerate() {
-        let _ = write!(
+    for (name, min, max) in boxes {
+        let _ = writeln!(
             s,
-            "        Boundary(name: \"{name}\", shape: Box(min: {}, max: {}), spacing: Some({spacing:?})",
+            "        Boundary(name: \"{name}\", shape: Box(min: {}, max: {}), spacing: Some({spacing:?})),",
             v(min),
             v(max)
         );
-        if k == last {
-            let _ = write!(s, ",\n                 pressure: Prescribed(density: 1000.0, pressure: {SUCTION:?})");
-        }
-        let _ = writeln!(s, "),");
     }
     let _ = writeln!(s, "    ],");
+    let _ = writeln!(
+        s,
+        "    outlets: [ Outlet(name: \"syringe\", region: Box(min: {}, max: {}), pressure: {SUCTION:?}, normal: (0.0, 0.0, 1.0)) ],",
+        v([-g.bore, -g.bore, g.z_tip]),
+        v([g.bore, g.bore, g.z_sink])
+    );
     let _ = writeln!(
         s,
         "    cavities: [ Box(min: {}, max: {}) ],",
@@ -250,7 +243,7 @@ pub fn scenario_ron(ns: u32, nl: u32, duration: f64) -> String {
         s,
         "    sinks: [ Sink(name: \"barrel\", region: Box(min: {}, max: {})) ],",
         v([-g.barrel_in, -g.barrel_in, g.z_sink]),
-        v([g.barrel_in, g.barrel_in, g.z_disc])
+        v([g.barrel_in, g.barrel_in, g.z_sink + SINK_DEPTH * g.dx_l])
     );
     let _ =
         writeln!(s, "    membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483)),");
