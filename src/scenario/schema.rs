@@ -259,9 +259,8 @@ pub struct Numerics {
     #[serde(default)]
     pub liquid_tension_below_ns: Option<f64>,
     /// With `liquid_tension`: regions (`Box` or `Sphere`, scenario coordinates; at most
-    /// `MAX_TENSION_REGIONS`) where the pressure may go negative whatever nˢ — the bore of a syringe's
-    /// needle, whose blood sees the tissue around the tip, and the tissue around the tip itself, so that
-    /// the suction reaches the tissue while the blood by the capsule stays clamped. With regions and
+    /// `MAX_TENSION_REGIONS`) where the pressure may go negative whatever nˢ — the tissue around a
+    /// syringe's tip, so that the suction reaches into it while the blood by the capsule stays clamped. With regions and
     /// without `liquid_tension_below_ns`, tension acts only in the regions.
     #[serde(default)]
     pub liquid_tension_in: Vec<Region>,
@@ -710,9 +709,10 @@ pub struct Relaxation {
     #[serde(default)]
     pub gravity_solid_only: bool,
     /// Hold the suction until t = 0: while relaxing, boundaries with a `Prescribed` pressure show
-    /// the mirror pressure instead and sinks remove nothing (`Command::SetSuction(false)`), so that a
-    /// primed syringe settles with its specimen and starts drawing at t = 0. Default false: sinks and
-    /// prescribed pressures act during the relaxation too (a perfused organ settles perfused).
+    /// the mirror pressure instead, outlets prescribe nothing and sinks remove nothing
+    /// (`Command::SetSuction(false)`), so that a primed syringe settles with its specimen and starts
+    /// drawing at t = 0. Default false: sinks, outlets and prescribed pressures act during the
+    /// relaxation too (a perfused organ settles perfused).
     #[serde(default)]
     pub hold_suction: bool,
 }

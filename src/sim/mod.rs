@@ -84,8 +84,9 @@ pub enum Command {
     /// Set the simulation clock [s] (boundary motions are evaluated at max(t, 0)).
     SetTime(f64),
     /// The suction's valve: `true` (the start state) lets boundaries with a `Prescribed` pressure
-    /// show it (SPEC §4.1) and sinks remove the liquid in them; `false` holds both — the prescribed
-    /// boundaries show the mirror pressure and the sinks remove nothing (a relaxation with
+    /// show it (SPEC §4.1), outlets prescribe their pressure and sinks remove the liquid in them;
+    /// `false` holds all three — the prescribed boundaries show the mirror pressure, the outlets'
+    /// buffers are liquid like any other and the sinks remove nothing (a relaxation with
     /// `hold_suction`).
     SetSuction(bool),
     /// Teleport object `object` so that its centre (box centre, sphere centre) is at `position`
