@@ -267,8 +267,7 @@ pub struct Numerics {
     /// Ambient pressure p_a [Pa] (not in the thesis; README: deviations from SPEC): the liquid's pressure
     /// is p_a + (2.53) (still clamped at 0 without `liquid_tension`), so that a suction of up to p_a
     /// below ambient (an `outlets` buffer) is a lower pressure, not a tension that parts an SPH column.
-    /// The capsule and free solids feel the liquid's pressure less p_a (the ambient pressure outside
-    /// them balances it). A liquid free surface feels p_a as an outward push: use it where the liquid
+    /// The capsule feels the blood's pressure less p_a (the ambient pressure outside it balances it). A liquid free surface feels p_a as an outward push: use it where the liquid
     /// is enclosed (a syringe). Absent: 0, the thesis's pressure.
     #[serde(default)]
     pub ambient_pressure: Option<f64>,
