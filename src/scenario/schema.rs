@@ -260,15 +260,17 @@ pub struct Numerics {
     pub liquid_tension_below_ns: Option<f64>,
     /// With `liquid_tension`: regions (`Box` or `Sphere`, scenario coordinates; at most
     /// `MAX_TENSION_REGIONS`) where the pressure may go negative whatever nˢ — the tissue around a
-    /// syringe's tip, so that the suction reaches into it while the blood by the capsule stays clamped. With regions and
-    /// without `liquid_tension_below_ns`, tension acts only in the regions.
+    /// syringe's tip, so that the suction reaches into it while the blood by the capsule stays
+    /// clamped. With regions and without `liquid_tension_below_ns`, tension acts only in the regions.
     #[serde(default)]
     pub liquid_tension_in: Vec<Region>,
     /// Ambient pressure p_a [Pa] (not in the thesis; README: deviations from SPEC): the liquid's pressure
     /// is p_a + (2.53) (still clamped at 0 without `liquid_tension`), so that a suction of up to p_a
     /// below ambient (an `outlets` buffer) is a lower pressure, not a tension that parts an SPH column.
-    /// The capsule feels the blood's pressure less p_a (the ambient pressure outside it balances it). A liquid free surface feels p_a as an outward push: use it where the liquid
-    /// is enclosed (a syringe). Absent: 0, the thesis's pressure.
+    /// The capsule feels the blood's pressure less p_a (the ambient pressure outside it balances it).
+    /// A liquid free surface feels p_a as an outward push, and it pushes blood through a one-particle
+    /// capsule: use it where walls and buffers enclose the liquid (a sealed vessel), not on perfused
+    /// tissue. Absent: 0, the thesis's pressure.
     #[serde(default)]
     pub ambient_pressure: Option<f64>,
     /// Speed [m/s] above which a particle counts as runaway (divergence); default 20·c_max.
