@@ -11,7 +11,7 @@ use common::scenes::{perfused_block, perfused_cube_under_gravity, sliding_block,
 use glam::{Mat3, Vec3};
 use perfuse::scenario::generate;
 use perfuse::sim::cpu::grid::Neighbours;
-use perfuse::sim::cpu::{CpuSolver, Nbrs, density, forces, solid};
+use perfuse::sim::cpu::{CpuSolver, Nbrs, ObjectContact, density, forces, solid};
 use perfuse::sim::gpu::bindings::Slot;
 use perfuse::sim::gpu::gpu_types::CellEntry;
 use perfuse::sim::gpu::passes::{self, Stage};
@@ -108,14 +108,7 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
     }
     let (a_l, a_s, vx_l, vx_s) = {
         let nb = nbrs(cpu);
-        let ctx = forces::ForceCtx {
-            p: &cpu.params,
-            geoms: &cpu.geoms,
-            gravity: cpu.st.gravity,
-            contacts: &cpu.contacts,
-            gravity_liquid: true,
-            outlets: &cpu.params.outlets,
-        };
+        let ctx = force_ctx(cpu, &cpu.params, &cpu.contacts);
         let (a_l, vx_l) = forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, true);
         let (a_s, vx_s) = forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, true);
         // evaluation 1's passes (no XSPH) give the same accelerations bit for bit
@@ -129,6 +122,19 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
     cpu.st.solid.a = a_s;
     cpu.st.liquid.vx = vx_l;
     cpu.st.solid.vx = vx_s;
+}
+
+/// The force passes' context for `cpu`'s scene with parameters `p` and pressure modes `contacts`
+/// (the liquid under gravity, `p`'s outlets in effect).
+fn force_ctx<'a>(cpu: &'a CpuSolver, p: &'a Params, contacts: &'a [ObjectContact]) -> forces::ForceCtx<'a> {
+    forces::ForceCtx {
+        p,
+        geoms: &cpu.geoms,
+        gravity: cpu.st.gravity,
+        contacts,
+        gravity_liquid: true,
+        outlets: &p.outlets,
+    }
 }
 
 fn gpu_from(ctx: GpuContext, cpu: &CpuSolver) -> GpuSolver {
@@ -586,14 +592,7 @@ fn surface_tension_forces_match_cpu() {
             let mut p = cpu.params.clone();
             f(&mut p);
             let nb = nbrs(&cpu);
-            let ctx = forces::ForceCtx {
-                p: &p,
-                geoms: &cpu.geoms,
-                gravity: cpu.st.gravity,
-                contacts: &cpu.contacts,
-                gravity_liquid: true,
-                outlets: &p.outlets,
-            };
+            let ctx = force_ctx(&cpu, &p, &cpu.contacts);
             (
                 forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, false).0,
                 forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false).0,
@@ -642,17 +641,9 @@ fn wall_friction_matches_cpu() {
         let as_: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, s.x.len()).unwrap();
         let d_as = max_vec_diff(&as_.iter().map(xyz).collect::<Vec<Vec3>>(), &s.a);
         let spec_contact = {
-            let contacts: Vec<_> =
-                cpu.contacts.iter().map(|c| perfuse::sim::cpu::ObjectContact { friction: -1.0, ..*c }).collect();
+            let contacts: Vec<_> = cpu.contacts.iter().map(|c| ObjectContact { friction: -1.0, ..*c }).collect();
             let nb = nbrs(&cpu);
-            let ctx = forces::ForceCtx {
-                p: &cpu.params,
-                geoms: &cpu.geoms,
-                gravity: cpu.st.gravity,
-                contacts: &contacts,
-                gravity_liquid: true,
-                outlets: &cpu.params.outlets,
-            };
+            let ctx = force_ctx(&cpu, &cpu.params, &contacts);
             forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false).0
         };
         let part = max_vec_diff(&spec_contact, &s.a);
@@ -1023,14 +1014,7 @@ fn outlet_and_ambient_pressure_match_cpu() {
         p0.ambient_pressure = 0.0;
         let a0 = {
             let nb = nbrs(&cpu);
-            let ctx = forces::ForceCtx {
-                p: &p0,
-                geoms: &cpu.geoms,
-                gravity: cpu.st.gravity,
-                contacts: &cpu.contacts,
-                gravity_liquid: true,
-                outlets: &p0.outlets,
-            };
+            let ctx = force_ctx(&cpu, &p0, &cpu.contacts);
             forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false).0
         };
         let share = max_vec_diff(&a0, &s.a);
