@@ -275,6 +275,9 @@ pub struct SyringeOutcome {
     /// than R from it) over the run.
     pub leaked_max: f64,
     pub invariants_failed: usize,
+    /// The bore's densest slab over the run, in particles over its lattice's ([`bore_packing`]; a
+    /// diagnostic of the outlet's buffer, not a SPEC row).
+    pub bore_packing_max: f64,
 }
 
 /// Volume Σ m/ρ₀ of the liquid particles for which `keep` holds (given their scenario position).
@@ -329,7 +332,9 @@ fn is_primed(p: &crate::sim::params::Params, s: &State, i: usize) -> bool {
 
 /// What is in the syringe (a diagnostic log line): primed and perfusing particles in the bore (below
 /// the barrel's floor) and in the barrel, and the particles sunk so far: where a change of the drawn
-/// volume comes from (one primed particle across the tip's plane is Δx_l³ of it).
+/// volume comes from (one primed particle across the tip's plane is Δx_l³ of it); and the bore's
+/// densest slab Δx_l thick, in particles over its lattice's (`bore_packing`: the outlet's buffer piles
+/// up blood at the mouth, README: Validation, `syringe.ron`).
 fn log_syringe(name: &str, g: &Geometry, p: &crate::sim::params::Params, sim: &crate::sim::Simulation, s: &State) {
     let mut n = [[0usize; 2]; 2];
     for i in 0..s.liquid.len() {
@@ -339,13 +344,36 @@ fn log_syringe(name: &str, g: &Geometry, p: &crate::sim::params::Params, sim: &c
         }
     }
     let sunk = sim.emit_totals().map_or(0, |e| e.sunk);
+    let (packing, at) = bore_packing(g, p, s);
     log::info!(
-        "{name}: bore {} primed + {} perfusing, barrel {} primed + {} perfusing, {sunk} sunk",
+        "{name}: bore {} primed + {} perfusing, barrel {} primed + {} perfusing, {sunk} sunk; the bore's densest \
+         slab {packing:.2}× its lattice's, {:.1} mm above the tip",
         n[0][0],
         n[0][1],
         n[1][0],
-        n[1][1]
+        n[1][1],
+        at * 1e3
     );
+}
+
+/// The bore's densest slab: its liquid particles in slabs Δx_l thick from the tip to the sink, over the
+/// slab's lattice sites ((2 half-width)²/Δx_l², whole or not); returns (the largest ratio, the height of
+/// that slab's bottom above the tip).
+pub fn bore_packing(g: &Geometry, p: &crate::sim::params::Params, s: &State) -> (f64, f64) {
+    let len = g.z_sink - g.z_tip;
+    let slabs = ((len / g.dx_l).ceil() as usize).max(1);
+    let mut count = vec![0usize; slabs];
+    for x in s.liquid.pos.iter().map(|x| p.to_world(*x)) {
+        if x[0].abs() <= g.bore && x[1].abs() <= g.bore && x[2] >= g.z_tip && x[2] <= g.z_sink {
+            count[(((x[2] - g.z_tip) / g.dx_l) as usize).min(slabs - 1)] += 1;
+        }
+    }
+    let sites = (2.0 * g.bore / g.dx_l).powi(2);
+    count
+        .iter()
+        .enumerate()
+        .map(|(k, &c)| (c as f64 / sites, k as f64 * g.dx_l))
+        .fold((0.0, 0.0), |best, x| if x.0 > best.0 { x } else { best })
 }
 
 /// Volume of the liquid outside the syringe: the specimen's blood, and any that left it elsewhere.
@@ -407,6 +435,7 @@ pub fn run(
         log::info!("{}: t = {t:.3} s, drawn {drawn:.3e} m³, leaked {leaked:.2e} m³", sc.name);
         log_leak(&sc.name, g, &p, &s, reach);
         log_syringe(&sc.name, g, &p, &sim, &s);
+        out.bore_packing_max = out.bore_packing_max.max(bore_packing(g, &p, &s).0);
         k += 1;
     }
     if let Some(f) = &mut frames {
