@@ -333,9 +333,16 @@ fn is_primed(p: &crate::sim::params::Params, s: &State, i: usize) -> bool {
 /// What is in the syringe (a diagnostic log line): primed and perfusing particles in the bore (below
 /// the barrel's floor) and in the barrel, and the particles sunk so far: where a change of the drawn
 /// volume comes from (one primed particle across the tip's plane is Δx_l³ of it); and the bore's
-/// densest slab Δx_l thick, in particles over its lattice's (`bore_packing`: the outlet's buffer piles
-/// up blood at the mouth, README: Validation, `syringe.ron`).
-fn log_syringe(name: &str, g: &Geometry, p: &crate::sim::params::Params, sim: &crate::sim::Simulation, s: &State) {
+/// densest slab Δx_l thick, `packing` = [`bore_packing`] (the outlet's buffer piles up blood at the
+/// mouth, README: Validation, `syringe.ron`).
+fn log_syringe(
+    name: &str,
+    g: &Geometry,
+    p: &crate::sim::params::Params,
+    sim: &crate::sim::Simulation,
+    s: &State,
+    (packing, at): (f64, f64),
+) {
     let mut n = [[0usize; 2]; 2];
     for i in 0..s.liquid.len() {
         let x = p.to_world(s.liquid.pos[i]);
@@ -344,7 +351,6 @@ fn log_syringe(name: &str, g: &Geometry, p: &crate::sim::params::Params, sim: &c
         }
     }
     let sunk = sim.emit_totals().map_or(0, |e| e.sunk);
-    let (packing, at) = bore_packing(g, p, s);
     log::info!(
         "{name}: bore {} primed + {} perfusing, barrel {} primed + {} perfusing, {sunk} sunk; the bore's densest \
          slab {packing:.2}× its lattice's, {:.1} mm above the tip",
@@ -434,8 +440,9 @@ pub fn run(
         out.leaked_max = out.leaked_max.max(leaked / out.liquid_volume.max(f64::MIN_POSITIVE));
         log::info!("{}: t = {t:.3} s, drawn {drawn:.3e} m³, leaked {leaked:.2e} m³", sc.name);
         log_leak(&sc.name, g, &p, &s, reach);
-        log_syringe(&sc.name, g, &p, &sim, &s);
-        out.bore_packing_max = out.bore_packing_max.max(bore_packing(g, &p, &s).0);
+        let packing = bore_packing(g, &p, &s);
+        log_syringe(&sc.name, g, &p, &sim, &s, packing);
+        out.bore_packing_max = out.bore_packing_max.max(packing.0);
         k += 1;
     }
     if let Some(f) = &mut frames {
