@@ -184,10 +184,11 @@ fn hourglass_stiffness(flags_i: u32, flags_j: u32) -> f32 {
     return 0.5 * (stiffness_factor(flags_i) + stiffness_factor(flags_j));
 }
 
-// Velocity of liquid particle i in the buffer of the outlet of unit normal n (forces.rs `outlet_velocity`):
-// n times the normal part of the Shepard mean Σ v_j W6 / Σ W6 over the open liquid within R_l, or, with
+// Velocity of liquid particle i in the buffer of the outlet of unit normal n and density rho_o
+// (forces.rs `outlet_velocity`): n times the normal part of the Shepard mean Σ (ρ_j/ρ_o) v_j W6 / Σ W6 over
+// the open liquid within R_l, or, with
 // none near, over all the other liquid within R_l, or of v_i.
-fn outlet_velocity(i: u32, xi: vec3<f32>, vi: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+fn outlet_velocity(i: u32, xi: vec3<f32>, vi: vec3<f32>, n: vec3<f32>, rho_o: f32) -> vec3<f32> {
     let kl = params.k_liquid;
     let ci = cell_coords(xi);
     let kb = nbr_begin();
@@ -212,8 +213,9 @@ fn outlet_velocity(i: u32, xi: vec3<f32>, vi: vec3<f32>, n: vec3<f32>) -> vec3<f
                 all_w += w;
                 all_v += vj * w;
                 if (outlet_find(liquid_pos[j].xyz) < 0) {
+                    // continuity across the buffer's face, ρ_j v_j / ρ_o (forces.rs outlet_velocity)
                     sum_w += w;
-                    sum_v += vj * w;
+                    sum_v += vj * (w * liquid_dens[j].x / rho_o);
                 }
             }
         }
@@ -267,7 +269,7 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
         // its ṽ (integrate_predict_liquid makes it its v)
         liquid_acc[i] = vec4<f32>(0.0);
         if (xsph) {
-            liquid_vel_adv[i] = vec4<f32>(outlet_velocity(i, xi, vi, params.outlet[3 * outlet + 2].xyz), 0.0);
+            liquid_vel_adv[i] = vec4<f32>(outlet_velocity(i, xi, vi, params.outlet[3 * outlet + 2].xyz, params.outlet[3 * outlet].w), 0.0);
         }
         return;
     }

@@ -296,11 +296,13 @@ fn syringe_draws_blood_out_of_the_tissue() {
     let particle = 0.4 * (0.05f64 / 11.0).powi(3);
     let end = o.drawn.last().expect("samples").1;
     eprintln!(
-        "drawn at the end: {:.1} particles, {:.2} % of the specimen's blood; the bore's densest slab at most {:.2}× its \
-         lattice's (the outlet's buffer piles blood up at the mouth: README, Validation)",
+        "drawn at the end: {:.1} particles, {:.2} % of the specimen's blood; the bore's liquid fraction (by mass) \
+         {:.2} at the end (lower half {:.2}), {:.2} at least",
         end / particle,
         100.0 * end / o.liquid_volume,
-        o.bore_packing_max
+        o.bore_fill_end.0,
+        o.bore_fill_end.1,
+        o.bore_fill_min
     );
     assert!(o.drawn_largest_drop <= 0.0, "the drawn volume fell by {:.3e} m³", o.drawn_largest_drop);
     assert!(end >= 0.005 * o.liquid_volume, "drawn volume at the end: {end:.3e} m³ ({:.1} particles)", end / particle);

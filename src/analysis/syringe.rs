@@ -275,9 +275,10 @@ pub struct SyringeOutcome {
     /// than R from it) over the run.
     pub leaked_max: f64,
     pub invariants_failed: usize,
-    /// The bore's densest slab over the run, in particles over its lattice's ([`bore_packing`]; a
-    /// diagnostic of the outlet's buffer, not a SPEC row).
-    pub bore_packing_max: f64,
+    /// The bore's liquid fraction ([`bore_fill`], whole and lower half) at the end and the whole bore's
+    /// least over the run (a diagnostic of the outlet's buffer, not a SPEC row).
+    pub bore_fill_end: (f64, f64),
+    pub bore_fill_min: f64,
 }
 
 /// Volume Σ m/ρ₀ of the liquid particles for which `keep` holds (given their scenario position).
@@ -333,15 +334,14 @@ fn is_primed(p: &crate::sim::params::Params, s: &State, i: usize) -> bool {
 /// What is in the syringe (a diagnostic log line): primed and perfusing particles in the bore (below
 /// the barrel's floor) and in the barrel, and the particles sunk so far: where a change of the drawn
 /// volume comes from (one primed particle across the tip's plane is Δx_l³ of it); and the bore's
-/// densest slab Δx_l thick, `packing` = [`bore_packing`] (the outlet's buffer piles up blood at the
-/// mouth, README: Validation, `syringe.ron`).
+/// liquid fraction, whole and lower half ([`bore_fill`]).
 fn log_syringe(
     name: &str,
     g: &Geometry,
     p: &crate::sim::params::Params,
     sim: &crate::sim::Simulation,
     s: &State,
-    (packing, at): (f64, f64),
+    (whole, lower): (f64, f64),
 ) {
     let mut n = [[0usize; 2]; 2];
     for i in 0..s.liquid.len() {
@@ -352,34 +352,36 @@ fn log_syringe(
     }
     let sunk = sim.emit_totals().map_or(0, |e| e.sunk);
     log::info!(
-        "{name}: bore {} primed + {} perfusing, barrel {} primed + {} perfusing, {sunk} sunk; the bore's densest \
-         slab {packing:.2}× its lattice's, {:.1} mm above the tip",
+        "{name}: bore {} primed + {} perfusing, barrel {} primed + {} perfusing, {sunk} sunk; the bore's liquid \
+         fraction {whole:.2} (lower half {lower:.2})",
         n[0][0],
         n[0][1],
         n[1][0],
-        n[1][1],
-        at * 1e3
+        n[1][1]
     );
 }
 
-/// The bore's densest slab: its liquid particles in slabs Δx_l thick from the tip to the sink, over the
-/// slab's lattice sites ((2 half-width)²/Δx_l², whole or not); returns (the largest ratio, the height of
-/// that slab's bottom above the tip).
-pub fn bore_packing(g: &Geometry, p: &crate::sim::params::Params, s: &State) -> (f64, f64) {
+/// The bore's liquid fraction: the liquid volume Σ m/ρ₀ of the particles in the bore (from the tip to
+/// the sink) over the bore's volume, for the whole bore and for its lower half (the rows the blood at the
+/// mouth sees). By mass, not by particles: primed blood (fraction 1) and the tissue's blood (fraction
+/// n₀ˡ = 0.4, so 0.4 of the mass) fill the bore at rest density with 1× and 2.5× the lattice's number of
+/// particles; and by halves, not by slabs Δx_l thick, whose bounds split lattice rows (0 and 2 at t = 0).
+/// Returns (whole, lower half): 1 full at rest density, below 1 the buffer has gaps.
+pub fn bore_fill(g: &Geometry, p: &crate::sim::params::Params, s: &State) -> (f64, f64) {
     let len = g.z_sink - g.z_tip;
-    let slabs = ((len / g.dx_l).ceil() as usize).max(1);
-    let mut count = vec![0usize; slabs];
-    for x in s.liquid.pos.iter().map(|x| p.to_world(*x)) {
+    let (mut whole, mut lower) = (0.0f64, 0.0f64);
+    for i in 0..s.liquid.len() {
+        let x = p.to_world(s.liquid.pos[i]);
         if x[0].abs() <= g.bore && x[1].abs() <= g.bore && x[2] >= g.z_tip && x[2] <= g.z_sink {
-            count[(((x[2] - g.z_tip) / g.dx_l) as usize).min(slabs - 1)] += 1;
+            let v = f64::from(s.liquid.mass[i]) / f64::from(p.rho0_l);
+            whole += v;
+            if x[2] < g.z_tip + 0.5 * len {
+                lower += v;
+            }
         }
     }
-    let sites = (2.0 * g.bore / g.dx_l).powi(2);
-    count
-        .iter()
-        .enumerate()
-        .map(|(k, &c)| (c as f64 / sites, k as f64 * g.dx_l))
-        .fold((0.0, 0.0), |best, x| if x.0 > best.0 { x } else { best })
+    let volume = (2.0 * g.bore).powi(2) * len;
+    (whole / volume, 2.0 * lower / volume)
 }
 
 /// Volume of the liquid outside the syringe: the specimen's blood, and any that left it elsewhere.
@@ -418,6 +420,7 @@ pub fn run(
         resolution: format!("{} solid + {} liquid, dx_s {:.2} mm", s0.solid.len(), s0.liquid.len(), p.dx_solid * 1e3),
         liquid_volume: outside0,
         near_tip: near.len(),
+        bore_fill_min: bore_fill(g, &p, &s0).0,
         ..Default::default()
     };
     let mut inv = Invariants::with_emitters();
@@ -440,9 +443,10 @@ pub fn run(
         out.leaked_max = out.leaked_max.max(leaked / out.liquid_volume.max(f64::MIN_POSITIVE));
         log::info!("{}: t = {t:.3} s, drawn {drawn:.3e} m³, leaked {leaked:.2e} m³", sc.name);
         log_leak(&sc.name, g, &p, &s, reach);
-        let packing = bore_packing(g, &p, &s);
-        log_syringe(&sc.name, g, &p, &sim, &s, packing);
-        out.bore_packing_max = out.bore_packing_max.max(packing.0);
+        let fill = bore_fill(g, &p, &s);
+        log_syringe(&sc.name, g, &p, &sim, &s, fill);
+        out.bore_fill_end = fill;
+        out.bore_fill_min = out.bore_fill_min.min(fill.0);
         k += 1;
     }
     if let Some(f) = &mut frames {
