@@ -185,9 +185,9 @@ fn hourglass_stiffness(flags_i: u32, flags_j: u32) -> f32 {
 }
 
 // Velocity of liquid particle i in the buffer of the outlet of unit normal n and density rho_o
-// (forces.rs `outlet_velocity`): n times the normal part of the Shepard mean Σ (ρ_j/ρ_o) v_j W6 / Σ W6 over
-// the open liquid within R_l, or, with
-// none near, over all the other liquid within R_l, or of v_i.
+// (forces.rs `outlet_velocity`): n times the normal part of the Shepard mean Σ (ρ_j/ρ_o) v_j W6 / Σ W6
+// over the open liquid within R_l (the mass flux in front carried off at the buffer's density), or, with
+// none near, the mean velocity of all the other liquid within R_l, or v_i.
 fn outlet_velocity(i: u32, xi: vec3<f32>, vi: vec3<f32>, n: vec3<f32>, rho_o: f32) -> vec3<f32> {
     let kl = params.k_liquid;
     let ci = cell_coords(xi);

@@ -508,7 +508,8 @@ pub fn forces_liquid(
 /// after Tafuni et al. 2018's first-order extrapolation, of the mass flux ρ_j v_j over the buffer's own
 /// density ρ_o rather than of v_j: continuity across the buffer's face. The buffer is pure liquid at the
 /// outlet's pressure, so blood drawn out of tissue at nˡ = 0.4 enters it at 0.4/(ρ_o/ρ₀) of its speed;
-/// at v_j the buffer ran 2.5 times too fast and held 40–60 % of its liquid), or, for the buffer's far
+/// at v_j the buffer ran 2.5 times too fast and emptied: 0.25–0.36 full in `tests/outlet.rs`'s porous
+/// channel, 0.62 in the reduced syringe; now 0.71–0.97 and 0.82), or, for the buffer's far
 /// rows beyond R_l of the open liquid, over all the other liquid within R_l (so that they follow the
 /// rows below them rather than keep their velocity), or of v_i when none is near. Along the normal
 /// only, so that the buffer, which feels no force, keeps the lattice it was filled with instead of
