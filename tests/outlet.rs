@@ -4,6 +4,8 @@
 //! under a −5 kPa outlet expands to the outlet's pressure, loses only what that expansion pushes into
 //! the sink, and rests — where the same column under SPEC D-23's prescribed-pressure disc with tension
 //! (`docs/sealed_column.ron`) drains completely within 0.09 s.
+//! And continuity across the buffer's face: blood drained out of a porous skeleton at nˡ = 0.4 keeps a
+//! pure-liquid buffer nearly full only if the buffer carries off its mass flux, not its velocity.
 
 use perfuse::scenario::Scenario;
 use perfuse::sim::{BackendKind, Simulation};
