@@ -369,17 +369,9 @@ fn log_syringe(
 /// Returns (whole, lower half): 1 full at rest density, below 1 the buffer has gaps.
 pub fn bore_fill(g: &Geometry, p: &crate::sim::params::Params, s: &State) -> (f64, f64) {
     let len = g.z_sink - g.z_tip;
-    let (mut whole, mut lower) = (0.0f64, 0.0f64);
-    for i in 0..s.liquid.len() {
-        let x = p.to_world(s.liquid.pos[i]);
-        if x[0].abs() <= g.bore && x[1].abs() <= g.bore && x[2] >= g.z_tip && x[2] <= g.z_sink {
-            let v = f64::from(s.liquid.mass[i]) / f64::from(p.rho0_l);
-            whole += v;
-            if x[2] < g.z_tip + 0.5 * len {
-                lower += v;
-            }
-        }
-    }
+    let in_bore = |x: [f64; 3]| x[0].abs() <= g.bore && x[1].abs() <= g.bore && x[2] >= g.z_tip && x[2] <= g.z_sink;
+    let whole = liquid_volume(p, s, |_, x| in_bore(x));
+    let lower = liquid_volume(p, s, |_, x| in_bore(x) && x[2] < g.z_tip + 0.5 * len);
     let volume = (2.0 * g.bore).powi(2) * len;
     (whole / volume, 2.0 * lower / volume)
 }
