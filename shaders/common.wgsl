@@ -275,10 +275,14 @@ struct Mat3Gpu {
     c2: vec4<f32>,
 }
 
-// Mirrors `StressGpu`: deviatoric Cauchy stress τ and artificial stress R (2.59).
+// Mirrors `StressGpu`: the deviatoric Cauchy stress τ and the artificial stress R (2.59), both symmetric,
+// as their upper triangles: a = (τxx, τyy, τzz, τxy), b = (τxz, τyz, Rxx, Ryy), c = (Rzz, Rxy, Rxz, Ryz).
+// A bond of the stress loop gathers 6 components of τ_j, a neighbour of the artificial-stress sum 6 of
+// R_j (stress_tau_of, stress_art_of), instead of a matrix each.
 struct StressGpu {
-    tau: Mat3Gpu,
-    art: Mat3Gpu,
+    a: vec4<f32>,
+    b: vec4<f32>,
+    c: vec4<f32>,
 }
 
 // Mirrors `CellEntry`: one entry of a set's cell list — the particle's index and its position when the
@@ -749,6 +753,31 @@ fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
 // glam Mat3::determinant: x_axis · (y_axis × z_axis).
 fn m3_det(a: mat3x3<f32>) -> f32 {
     return dot3(a[0], cross3(a[1], a[2]));
+}
+
+// The symmetric matrix of diagonal d = (xx, yy, zz) and off-diagonal o = (xy, xz, yz).
+fn sym3(d: vec3<f32>, o: vec3<f32>) -> mat3x3<f32> {
+    return mat3x3<f32>(vec3<f32>(d.x, o.x, o.y), vec3<f32>(o.x, d.y, o.z), vec3<f32>(o.y, o.z, d.z));
+}
+
+// StressGpu of τ and R from their upper triangles (gpu_types.rs `StressGpu::pack`); m[c][r] is row r of
+// column c.
+fn stress_pack(t: mat3x3<f32>, r: mat3x3<f32>) -> StressGpu {
+    return StressGpu(vec4<f32>(t[0][0], t[1][1], t[2][2], t[1][0]), vec4<f32>(t[2][0], t[2][1], r[0][0], r[1][1]),
+                     vec4<f32>(r[2][2], r[1][0], r[2][0], r[2][1]));
+}
+
+// τ_j and R_j from solid_tau_art, each a gather of its 6 components.
+fn stress_tau_of(j: u32) -> mat3x3<f32> {
+    let a = solid_tau_art[j].a;
+    let b = solid_tau_art[j].b.xy;
+    return sym3(a.xyz, vec3<f32>(a.w, b.x, b.y));
+}
+
+fn stress_art_of(j: u32) -> mat3x3<f32> {
+    let b = solid_tau_art[j].b.zw;
+    let c = solid_tau_art[j].c;
+    return sym3(vec3<f32>(b.x, b.y, c.x), c.yzw);
 }
 
 fn m3_identity() -> mat3x3<f32> {

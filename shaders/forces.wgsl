@@ -421,9 +421,8 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
     let pr = di.w;
     let n_s = di.z;
     let inv2 = 1.0 / (rho * rho);
-    let st_i = solid_tau_art[i];
-    let tau_i = m3_scale(m3_load(st_i.tau), inv2);
-    let art_i = m3_load(st_i.art);
+    let tau_i = m3_scale(stress_tau_of(i), inv2);
+    let art_i = stress_art_of(i);
     var a = vec3<f32>(0.0);
     // deviatoric stress over intact bonds (2.48), (2.43)
     let nb = bond_count[i];
@@ -433,7 +432,7 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
         let xij = min_image(xi - pj4.xyz);
         let grad = xij * grad_cubic_factor(ks, len3(xij));
         let rj = solid_dens[j].x;
-        let tj = m3_div(m3_load(solid_tau_art[j].tau), rj * rj);
+        let tj = m3_div(stress_tau_of(j), rj * rj);
         a += m3_mul_v(m3_add(tau_i, tj), grad) * pj4.w;
     }
     // the hourglass control over the same bonds, in its own loop so that the stress loop carries no
@@ -475,7 +474,7 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                 var acc = grad * (-0.5 * (n_s + dj.z) * (pi + pj));
                 if (params.as_eps > 0.0) {
                     let f = w_cubic(ks, r) / params.wc_dx;
-                    acc += m3_mul_v(m3_add(art_i, m3_load(solid_tau_art[j].art)), grad) * powi(f, params.as_exp);
+                    acc += m3_mul_v(m3_add(art_i, stress_art_of(j)), grad) * powi(f, params.as_exp);
                 }
                 let pij = artificial_viscosity(vi - vj, xij, r, ks.h, params.c_s, 0.5 * (rho + dj.x));
                 acc -= grad * pij;

@@ -8,16 +8,12 @@
 
 #import render_common
 
-struct Mat3Cols {
-    c0: vec4<f32>,
-    c1: vec4<f32>,
-    c2: vec4<f32>,
-}
-
-// Mirrors `StressGpu`: deviatoric Cauchy stress τ and artificial stress R.
+// Mirrors `StressGpu`: the upper triangles of the deviatoric Cauchy stress τ and the artificial stress
+// R; a = (τxx, τyy, τzz, τxy), b = (τxz, τyz, Rxx, Ryy), c = (Rzz, Rxy, Rxz, Ryz).
 struct Stress {
-    tau: Mat3Cols,
-    art: Mat3Cols,
+    a: vec4<f32>,
+    b: vec4<f32>,
+    c: vec4<f32>,
 }
 
 @group(1) @binding(0) var<storage, read> liquid_pos: array<vec4<f32>>;
@@ -39,12 +35,11 @@ const FIELD_STRESS: u32 = 1u;
 const FIELD_LIQUID: u32 = 2u;
 const FIELD_BROKEN: u32 = 3u;
 
-// von Mises equivalent of the deviatoric stress: sqrt(3/2 τ:τ) [Pa].
-fn von_mises(s: Mat3Cols) -> f32 {
-    let a = s.c0.xyz;
-    let b = s.c1.xyz;
-    let c = s.c2.xyz;
-    let tt = a.x * a.x + a.y * a.y + a.z * a.z + b.x * b.x + b.y * b.y + b.z * b.z + c.x * c.x + c.y * c.y + c.z * c.z;
+// von Mises equivalent of the deviatoric stress: sqrt(3/2 τ:τ) [Pa], τ:τ = Σ diagonal² + 2 Σ off-diagonal².
+fn von_mises(s: Stress) -> f32 {
+    let d = s.a.xyz;
+    let o = vec3<f32>(s.a.w, s.b.x, s.b.y);
+    let tt = dot(d, d) + 2.0 * dot(o, o);
     return sqrt(1.5 * tt);
 }
 
@@ -53,7 +48,7 @@ fn tissue_colour(i: u32) -> vec3<f32> {
     let scale = max(cam.draw.w, 1e-30);
     let flags = solid_flags[i];
     if (mode == FIELD_STRESS) {
-        return colour_map(von_mises(solid_stress[i].tau) / scale);
+        return colour_map(von_mises(solid_stress[i]) / scale);
     }
     if (mode == FIELD_LIQUID) {
         return colour_map(solid_dens[i].y / scale);

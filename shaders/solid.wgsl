@@ -105,7 +105,7 @@ fn solid_stress(@builtin(global_invocation_id) gid: vec3<u32>) {
     let d = solid_dens[i];
     let sigma = m3_sub(t, m3_scale(m3_identity(), d.z * d.w));
     let art = artificial_stress(sigma, d.x, params.as_eps);
-    solid_tau_art[i] = StressGpu(m3_store(t), m3_store(art));
+    solid_tau_art[i] = stress_pack(t, art);
 }
 
 @compute @workgroup_size(64)

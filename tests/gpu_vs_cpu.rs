@@ -371,8 +371,8 @@ fn stress_and_force_passes_match_cpu() {
             }
             (d, m)
         };
-        let (d_tau, m_tau) = mat_diff(&|i| Mat3::from(st[i].tau), &s.tau);
-        let (d_art, m_art) = mat_diff(&|i| Mat3::from(st[i].art), &s.art);
+        let (d_tau, m_tau) = mat_diff(&|i| st[i].tau(), &s.tau);
+        let (d_art, m_art) = mat_diff(&|i| st[i].art(), &s.art);
         let al: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidAcc, l.x.len()).unwrap();
         let as_: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, s.x.len()).unwrap();
         let vl: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidVelAdv, l.x.len()).unwrap();

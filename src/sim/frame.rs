@@ -7,14 +7,14 @@
 //!
 //! [`Simulation::publish`]: crate::sim::Simulation::publish
 
-use super::gpu::gpu_types::Mat3Gpu;
+use super::gpu::gpu_types::StressGpu;
 
 /// Bytes per particle of each buffer (the solver's layouts: `vec4` positions, `vec4` (ρ, nˡ, nˢ, p),
 /// `StressGpu` (τ, R), `u32` bond counts and flags).
 pub const LIQUID_POS_BYTES: u64 = 16;
 pub const SOLID_POS_BYTES: u64 = 16;
 pub const SOLID_DENS_BYTES: u64 = 16;
-pub const SOLID_STRESS_BYTES: u64 = 2 * std::mem::size_of::<Mat3Gpu>() as u64;
+pub const SOLID_STRESS_BYTES: u64 = std::mem::size_of::<StressGpu>() as u64;
 pub const U32_BYTES: u64 = 4;
 
 /// One set of render buffers (sized for a scenario's liquid capacity and solid count).
@@ -26,7 +26,7 @@ pub struct FrameBuffers {
     pub solid_pos: wgpu::Buffer,
     /// (ρ, nˡ, nˢ, p) of each solid particle.
     pub solid_dens: wgpu::Buffer,
-    /// Deviatoric Cauchy stress τ and artificial stress R (3 × vec4 each).
+    /// Deviatoric Cauchy stress τ and artificial stress R (`StressGpu`: their upper triangles, 3 vec4).
     pub solid_stress: wgpu::Buffer,
     /// Intact bonds now and at t = 0 (broken = initial − now).
     pub bond_count: wgpu::Buffer,

@@ -663,7 +663,7 @@ impl CpuSolver {
 
     /// Uploads the render data into `frame` in the GPU solver's layouts (`sim::frame`).
     pub fn publish(&self, frame: &crate::sim::frame::FrameBuffers, queue: &wgpu::Queue) {
-        use crate::sim::gpu::gpu_types::{Mat3Gpu, StressGpu};
+        use crate::sim::gpu::gpu_types::StressGpu;
         let l = &self.st.liquid;
         let s = &self.st.solid;
         if (frame.n_liquid as usize) < l.x.len() || frame.n_solid as usize != s.x.len() {
@@ -679,9 +679,7 @@ impl CpuSolver {
             queue.write_buffer(&frame.solid_pos, 0, bytemuck::cast_slice(&v4(&s.x, &s.m)));
             let dens: Vec<[f32; 4]> = (0..s.x.len()).map(|i| [s.rho[i], s.n_l[i], s.n_s[i], s.p[i]]).collect();
             queue.write_buffer(&frame.solid_dens, 0, bytemuck::cast_slice(&dens));
-            let stress: Vec<StressGpu> = (0..s.x.len())
-                .map(|i| StressGpu { tau: Mat3Gpu::from(s.tau[i]), art: Mat3Gpu::from(s.art[i]) })
-                .collect();
+            let stress: Vec<StressGpu> = (0..s.x.len()).map(|i| StressGpu::pack(s.tau[i], s.art[i])).collect();
             queue.write_buffer(&frame.solid_stress, 0, bytemuck::cast_slice(&stress));
             queue.write_buffer(&frame.bond_count, 0, bytemuck::cast_slice(&s.bond_count));
             queue.write_buffer(&frame.bond_count0, 0, bytemuck::cast_slice(&s.bond_count0));

@@ -264,6 +264,28 @@ mod tests {
         }
     }
 
+    /// τ (2.12) and R (2.59) come out symmetric bit for bit (B = FFᵀ, B̄², and Σ ra qa ⊗ qa form each
+    /// pair (r, c), (c, r) from the same products in the same order), so the GPU's `StressGpu`, which
+    /// keeps their upper triangles, holds exactly what the CPU twin uses; and the packing round-trips.
+    #[test]
+    fn stress_and_artificial_stress_are_exactly_symmetric() {
+        use crate::sim::gpu::gpu_types::StressGpu;
+        let mut seed = 11u64;
+        for _ in 0..200 {
+            let f = Mat3::from_cols_array(&std::array::from_fn(|k| {
+                (if k % 4 == 0 { 1.0 } else { 0.0 }) + 0.4 * (lcg(&mut seed) - 0.5)
+            }));
+            let tau = mooney_rivlin_tau(f, 250_000.0, 9167.5);
+            let sigma = tau - Mat3::IDENTITY * (3.0e4 * (lcg(&mut seed) - 0.5));
+            let art = artificial_stress(sigma, 1000.0, 0.3);
+            for m in [tau, art] {
+                assert_eq!(m, m.transpose(), "{m:?}");
+            }
+            let packed = StressGpu::pack(tau, art);
+            assert_eq!((packed.tau(), packed.art()), (tau, art));
+        }
+    }
+
     #[test]
     fn jacobi_diagonalises() {
         let mut seed = 3u64;

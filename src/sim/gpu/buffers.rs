@@ -9,8 +9,9 @@ use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
 /// Smallest buffer size: zero-sized buffers cannot be bound, empty sets still bind theirs, and a
-/// runtime-sized array must hold one element of its struct (the largest, `StressGpu`, is 96 bytes; an
-/// empty object or motion table is bound as one zeroed 96-byte `ObjectGpu` / `MotionGpu`).
+/// runtime-sized array must hold one element of its struct (the largest per-particle one, common.wgsl's `LiquidMove`,
+/// is 64 bytes; an empty object or motion table is bound as one zeroed 96-byte `ObjectGpu` /
+/// `MotionGpu`).
 const MIN_BYTES: u64 = 256;
 
 /// All simulation buffers by slot; the grid-generic slots resolve per set.

@@ -426,12 +426,45 @@ impl From<Mat3Gpu> for glam::Mat3 {
     }
 }
 
-/// `StressGpu` (common.wgsl): τ and the artificial stress R (2.59).
+/// `StressGpu` (common.wgsl): τ and the artificial stress R (2.59), both symmetric, as their upper
+/// triangles — `a` = (τxx, τyy, τzz, τxy), `b` = (τxz, τyz, Rxx, Ryy), `c` = (Rzz, Rxy, Rxz, Ryz) —
+/// so that a bond of the stress loop gathers 6 components of τ_j and a neighbour of the
+/// artificial-stress sum 6 of R_j instead of a 3×3 matrix each (the gathers are most of the force
+/// passes' cost on the software adapter). The CPU twin's τ and R are symmetric bit for bit
+/// (`sim::cpu::solid` tests), so the packing loses nothing.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct StressGpu {
-    pub tau: Mat3Gpu,
-    pub art: Mat3Gpu,
+    pub a: [f32; 4],
+    pub b: [f32; 4],
+    pub c: [f32; 4],
+}
+
+impl StressGpu {
+    /// Packs τ and R from their upper triangles (row r, column c with r ≤ c).
+    pub fn pack(tau: glam::Mat3, art: glam::Mat3) -> StressGpu {
+        let (t, r) = (tau.to_cols_array_2d(), art.to_cols_array_2d()); // [column][row]
+        StressGpu {
+            a: [t[0][0], t[1][1], t[2][2], t[1][0]],
+            b: [t[2][0], t[2][1], r[0][0], r[1][1]],
+            c: [r[2][2], r[1][0], r[2][0], r[2][1]],
+        }
+    }
+
+    /// τ (common.wgsl `stress_tau`).
+    pub fn tau(&self) -> glam::Mat3 {
+        sym3([self.a[0], self.a[1], self.a[2]], [self.a[3], self.b[0], self.b[1]])
+    }
+
+    /// R (common.wgsl `stress_art`).
+    pub fn art(&self) -> glam::Mat3 {
+        sym3([self.b[2], self.b[3], self.c[0]], [self.c[1], self.c[2], self.c[3]])
+    }
+}
+
+/// The symmetric matrix of diagonal (xx, yy, zz) and off-diagonal (xy, xz, yz).
+fn sym3(d: [f32; 3], o: [f32; 3]) -> glam::Mat3 {
+    glam::Mat3::from_cols_array_2d(&[[d[0], o[0], o[1]], [o[0], d[1], o[2]], [o[1], o[2], d[2]]])
 }
 
 /// `CellEntry` (common.wgsl): one entry of a set's cell list, the particle index with its position at
@@ -462,7 +495,7 @@ const _: () = assert!(MAX_OUTLETS == 2);
 const _: () = assert!(size_of::<StepState>() == 48);
 const _: () = assert!(size_of::<ObjectGpu>() == 96);
 const _: () = assert!(size_of::<Mat3Gpu>() == 48);
-const _: () = assert!(size_of::<StressGpu>() == 96);
+const _: () = assert!(size_of::<StressGpu>() == 48);
 const _: () = assert!(size_of::<GridSet>() == 16);
 const _: () = assert!(size_of::<CellEntry>() == 16);
 const _: () = assert!(size_of::<MotionGpu>() == 96);
@@ -525,7 +558,7 @@ pub const LAYOUTS: &[StructLayout] = &[
         ],
     ),
     ("Mat3Gpu", size_of::<Mat3Gpu>(), &[("c1", offset_of!(Mat3Gpu, c1)), ("c2", offset_of!(Mat3Gpu, c2))]),
-    ("StressGpu", size_of::<StressGpu>(), &[("art", offset_of!(StressGpu, art))]),
+    ("StressGpu", size_of::<StressGpu>(), &[("b", offset_of!(StressGpu, b)), ("c", offset_of!(StressGpu, c))]),
     ("GridSet", size_of::<GridSet>(), &[("cells", offset_of!(GridSet, cells))]),
     ("CellEntry", size_of::<CellEntry>(), &[("id", offset_of!(CellEntry, id))]),
     (

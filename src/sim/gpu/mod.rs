@@ -433,8 +433,7 @@ impl GpuSolver {
         out.push((Slot::SolidFlags, bytes(&s.flags)));
         let f: Vec<Mat3Gpu> = s.def_grad.iter().map(|m| (*m).into()).collect();
         out.push((Slot::SolidDefGrad, bytes(&f)));
-        let st: Vec<StressGpu> =
-            (0..s.x.len()).map(|i| StressGpu { tau: s.tau[i].into(), art: s.art[i].into() }).collect();
+        let st: Vec<StressGpu> = (0..s.x.len()).map(|i| StressGpu::pack(s.tau[i], s.art[i])).collect();
         out.push((Slot::SolidStress, bytes(&st)));
         out.push((Slot::SolidPosRef, bytes(&plain(&s.x_ref))));
         let fit: Vec<Mat3Gpu> =
