@@ -107,8 +107,12 @@ fn porous_channel_into_an_outlet() -> Scenario {
 /// its area ρ_o/ρ₀ = 1 (0 Pa gauge). Measured (CPU, 0.05-s samples to 0.5 s, ≈ 180 of 520 particles
 /// sunk, the buffer's 120 replaced 1.5 times): 0.97 falling to a steady 0.71–0.73; a buffer moving at
 /// v_j falls to 0.25–0.36. The rest of the deficit is the kernel at the face: the open liquid nearest
-/// the buffer counts the buffer's pure liquid in its ρ_j, so its flux reads high. Asserted: at least
-/// 0.65 full at every sample, and at most 1.1 (no pile-up).
+/// the buffer counts the buffer's pure liquid in its ρ_j, so its flux reads high. (Probes, 2026-12-05:
+/// the same mass flux sampled on a plane R_l–2R_l in front of the face keeps the buffer 0.91–1.0 full
+/// and drains 102–108 particles instead of 180 — but in a converging sink such as the syringe's needle
+/// tip that plane sees a lower flux density than the face, so it is not the rule; capping ρ_j/ρ_o at
+/// 1 − nˢ_j changed nothing here and broke the sealed column.) Asserted: at least 0.65 full at every
+/// sample, and at most 1.1 (no pile-up).
 #[test]
 fn an_outlet_buffer_drained_from_a_porous_skeleton_stays_full() {
     let sc = porous_channel_into_an_outlet();
@@ -127,8 +131,8 @@ fn an_outlet_buffer_drained_from_a_porous_skeleton_stays_full() {
         fills.push(v / area);
     }
     let sunk = sim.emit_totals().expect("totals").sunk;
-    assert!(sunk >= 150, "the channel drained only {sunk} particles");
     eprintln!("the buffer's liquid volume over its area at 0.05 … 0.5 s: {fills:.3?}; {sunk} of {n0} particles sunk");
+    assert!(sunk >= 150, "the channel drained only {sunk} particles");
     for (k, f) in fills.iter().enumerate() {
         assert!((0.65..=1.1).contains(f), "t = {:.2} s: the buffer is {f:.3} full", 0.05 * (k + 1) as f64);
     }
