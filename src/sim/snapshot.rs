@@ -15,8 +15,9 @@ use serde::{Deserialize, Serialize};
 /// Layout version of the encoded snapshot: bumped whenever `CpuState` or the GPU's state buffers
 /// change, so that a keyframe of another build is refused instead of misread. 2: boundary objects carry
 /// their solid contact (`BoundaryObject::friction`, `ObjectGpu`/`MotionGpu.friction`). 3: the suction's
-/// valve (`CpuState::suction_held`, the GPU mirror's `suction_held`; `Command::SetSuction`).
-pub const SNAPSHOT_LAYOUT: u32 = 3;
+/// valve (`CpuState::suction_held`, the GPU mirror's `suction_held`; `Command::SetSuction`). 4: the GPU
+/// keeps τ and R as their upper triangles (`StressGpu`, 48 bytes per solid particle instead of 96).
+pub const SNAPSHOT_LAYOUT: u32 = 4;
 
 /// One keyframe of a simulation.
 #[derive(Clone, Debug, Serialize, Deserialize)]
