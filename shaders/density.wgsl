@@ -6,7 +6,8 @@
 //   ambient pressure p_a before the clamp; in an outlet's buffer the outlet's p_a + gauge and the
 //   density of pure liquid at it instead.
 // * density_solid: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
-//   nˡ by summation of the liquid (membrane override 1 − nˢ_sat, §3.1.3),
+//   nˡ by summation of the liquid and the walls' liquid-equivalent mass (D-8 with §4.1's boundary as
+//   a continuation of the liquid, as in 2.46; membrane override 1 − nˢ_sat, §3.1.3),
 //   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); density_solid_kept, evaluation 0's, keeps the nˡ of
 //   the previous step's evaluation 1 (same positions).
 // Neighbour sums run in the canonical order of grid.wgsl, as on the CPU.
@@ -163,7 +164,10 @@ fn solid_density(gid: vec3<u32>, sum_liquid: bool) {
             }
         }
     }
-    // ... and over B_s (solid-equivalent mass)
+    // ... and over B_s (solid-equivalent mass) within 2h_s; the walls' liquid-equivalent mass m_b^l within
+    // R_× for nˡ (a wall continues the liquid in the solid's fraction as in the liquid's ρ, 2.46)
+    let r2b = max(r2s, r2x);
+    var sum_b = 0.0;
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
@@ -172,9 +176,15 @@ fn solid_density(gid: vec3<u32>, sum_liquid: bool) {
             let j = e.id;
             let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
-            if (r2 < r2s) {
-                let vb = boundary_vel[j];
-                drho += vb.w * dot3(vi - vb.xyz, xij * grad_cubic_factor(ks, sqrt(r2)));
+            if (r2 < r2b) {
+                let r = sqrt(r2);
+                if (r < support) {
+                    let vb = boundary_vel[j];
+                    drho += vb.w * dot3(vi - vb.xyz, xij * grad_cubic_factor(ks, r));
+                }
+                if (r < kx.r) {
+                    sum_b += boundary_pos[j].w * w_poly6(kx, r);
+                }
             }
         }
     }
@@ -196,7 +206,7 @@ fn solid_density(gid: vec3<u32>, sum_liquid: bool) {
                 }
             }
         }
-        n_l = sum / params.rho0_l;
+        n_l = (sum + sum_b) / params.rho0_l;
     }
     let rho = solid_dens[i].x;
     let n_s = rho / params.rho0_s;

@@ -7,7 +7,9 @@
 //!   pressure p_a (`numerics.ambient_pressure`) before the clamp; in an outlet's buffer the outlet's
 //!   prescribed p_a + gauge and the density of pure liquid at it instead.
 //! * `density_solid`: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
-//!   nˡ by summation of the liquid (membrane override 1 − nˢ_sat, §3.1.3),
+//!   nˡ by summation of the liquid and the walls' liquid-equivalent mass m_b^l (D-8 with §4.1's
+//!   boundary as a continuation of the liquid, as in (2.46); README: deviations from SPEC; membrane
+//!   override 1 − nˢ_sat, §3.1.3),
 //!   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); without `sum_liquid` (`density_solid_kept`,
 //!   evaluation 0) nˡ is the one of the previous step's evaluation 1, on the same positions.
 
@@ -93,8 +95,16 @@ pub fn density_solid(
                     drho += s.m[j] * (vi - s.v[j]).dot(xij * ks.grad_cubic_factor(r));
                 }
             });
-            nb.boundary.for_each(xi, support, |j, xij, r| {
-                drho += b.m_s[j] * (vi - b.v[j]).dot(xij * ks.grad_cubic_factor(r));
+            // B_s in the continuity within 2h_s, and the walls' liquid-equivalent mass m_b^l within R_× for
+            // nˡ: a wall continues the liquid in the solid's fraction as it does in the liquid's ρ (2.46)
+            let mut sum_b = 0.0f32;
+            nb.boundary.for_each(xi, support.max(kx.r), |j, xij, r| {
+                if r < support {
+                    drho += b.m_s[j] * (vi - b.v[j]).dot(xij * ks.grad_cubic_factor(r));
+                }
+                if r < kx.r {
+                    sum_b += b.m_l[j] * kx.w_poly6(r);
+                }
             });
             let n_l = if s.flags[i] & SolidFlags::MEMBRANE != 0 {
                 n_l_membrane
@@ -103,7 +113,7 @@ pub fn density_solid(
             } else {
                 let mut sum = 0.0f32;
                 nb.liquid.for_each(xi, kx.r, |j, _, r| sum += l.m[j] * kx.w_poly6(r));
-                sum / p.rho0_l
+                (sum + sum_b) / p.rho0_l
             };
             let n_s = s.rho[i] / p.rho0_s;
             let pr = p.k_s * (n_s - p.n_sat) + p.k_sat * (n_s + n_l - 1.0);

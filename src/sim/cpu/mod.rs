@@ -940,6 +940,57 @@ mod tests {
         assert!(total.length() <= 1e-4 * scale, "Σma = {total:?}, Σ|ma| = {scale}");
     }
 
+    /// SPEC §4.1: a boundary layer is a continuation of the phase at its reference apparent density, so
+    /// a wall under a perfused block completes the solid's liquid fraction (D-8) as it completes the
+    /// liquid's density (2.46): the bottom layer of tissue on a plate reads nˡ = n₀ˡ within 1 % and
+    /// no saturation tension in (2.52), while the same layer without the plate reads the deficit of a
+    /// free face.
+    #[test]
+    fn a_plate_continues_the_liquid_in_the_solids_fraction() {
+        let bottom_layer = |plate: bool| {
+            let walls = if plate {
+                "boundaries: [Boundary(name: \"plate\", shape: Box(min: (-0.02, -0.02, -0.006), max: (0.02, 0.02, 0.0)), \
+                 spacing: Some(0.002))],"
+            } else {
+                ""
+            };
+            let text = format!(
+                "Scenario(name: \"t\", dimensions: 3, domain: Domain(min: (-0.02, -0.02, -0.008), max: (0.02, 0.02, 0.02)), \
+                 liquid: Some(Liquid(density: 1000.0, viscosity: 0.35, stiffness: Some(1e5))), \
+                 solid: Some(Solid(density: 1000.0, c10: 1e5, c01: 400.0, k_s: 1e5, n_sat: 0.6, k_sat: 1e5, friction: 1e6)), \
+                 numerics: Numerics(dx_liquid: Some(0.002), dx_solid: Some(0.002)), \
+                 particles: [PerfusedBlock(min: (-0.012, -0.012, 0.0), max: (0.012, 0.012, 0.016), solid_fraction: 0.6, \
+                 liquid_fraction: 0.4)], {walls} duration: 1.0)"
+            );
+            let sc = Scenario::from_str_named(&text, "test").expect("valid test scenario");
+            let g = generate(&sc);
+            let mut s = CpuSolver::new(Params::new(&sc, &g), &g).expect("solver");
+            s.evaluate(false);
+            let p = &s.params;
+            let inset = 0.012 - p.k_cross.r;
+            let z0 = s.st.solid.x.iter().map(|x| x.z).fold(f32::MAX, f32::min);
+            let layer: Vec<usize> = (0..s.st.solid.x.len())
+                .filter(|&i| {
+                    let x = s.st.solid.x[i];
+                    x.z < z0 + 1e-4 && x.x.abs() < inset && x.y.abs() < inset
+                })
+                .collect();
+            assert!(!layer.is_empty(), "bottom layer found");
+            let n = layer.len() as f32;
+            let n_l = layer.iter().map(|&i| s.st.solid.n_l[i]).sum::<f32>() / n;
+            let pr = layer.iter().map(|&i| s.st.solid.p[i]).sum::<f32>() / n;
+            (n_l, pr)
+        };
+        let (on_plate, p_on) = bottom_layer(true);
+        let (free, p_free) = bottom_layer(false);
+        eprintln!(
+            "bottom layer: on the plate nˡ {on_plate:.4}, pˢ {p_on:.0} Pa; free face nˡ {free:.4}, pˢ {p_free:.0} Pa"
+        );
+        assert!((on_plate - 0.4).abs() < 0.004, "on the plate nˡ = {on_plate}");
+        assert!(p_on.abs() < 500.0, "on the plate pˢ = {p_on} Pa");
+        assert!(free < 0.38 && p_free < -1000.0, "a free face's deficit: nˡ {free}, pˢ {p_free} Pa");
+    }
+
     /// Evaluation 0 reuses the liquid's density sums and the solid's nˡ of the previous step's
     /// evaluation 1: after every step of a falling, deforming perfused block they are bit for bit what a
     /// fresh pass gives, and the reuse does happen (no other pass moved particles in between); a new
