@@ -128,7 +128,7 @@ fn oozing_drains_onto_the_plate_and_the_top_dries() {
 /// and rises at ≈ 2 cm/s. What keeps it is the connectivity damage (Alg. 2): the bonds broken under
 /// the indenter do not re-form, so the crushed tissue does not spring back. At 8³ (indenter radius
 /// 1.6Δx_s, 2h = 16 mm) the top-centre particles slide aside instead and no dent stays (−0.03 mm); at
-/// 10³ it is 0.83 mm (2.7 mm, and 4.4 mm at 12³, before the indenter and the plate counted in the
+/// 10³ it is 0.83 mm, at 12³ 2.48 mm (2.7 and 4.4 mm before the indenter and the plate counted in the
 /// solid's nˡ: with as many bonds broken, part of that dent came from the saturation tension of tissue
 /// that saw them as air; README).
 #[test]
