@@ -320,6 +320,15 @@ const SOLID_KINEMATIC: u32 = 1u;
 const SOLID_MEMBRANE: u32 = 2u;
 const SOLID_TETHERED: u32 = 4u;
 
+// High bit of a boundary particle's object word (`boundary_pos0.w`): the particle stands in a cavity in
+// the tissue's place and shows the liquid's nˢ its solid-equivalent mass (CPU `BoundarySet::m_sn`).
+const BOUNDARY_IN_TISSUE: u32 = 0x80000000u;
+
+// The boundary object of boundary particle j.
+fn boundary_object(j: u32) -> u32 {
+    return bitcast<u32>(boundary_pos0[j].w) & ~BOUNDARY_IN_TISSUE;
+}
+
 // `sim::DtLimit` order.
 const LIMIT_VISCOUS: u32 = 0u;
 const LIMIT_SOUND: u32 = 1u;

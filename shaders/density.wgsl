@@ -67,7 +67,9 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    // wall particles (liquid-equivalent mass)
+    // wall particles: the liquid-equivalent mass in ρ (2.46) within R_l and, where a wall stands in the
+    // tissue's place, its solid-equivalent mass in nˢ within R_× (§4.1)
+    var sum_bs = 0.0;
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
@@ -76,8 +78,14 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
             let j = e.id;
             let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
-            if (r2 < r2l) {
-                rho += boundary_pos[j].w * w_poly6(kl, sqrt(r2));
+            if (r2 < r2x) {
+                let r = sqrt(r2);
+                if (r < kl.r) {
+                    rho += boundary_pos[j].w * w_poly6(kl, r);
+                }
+                if ((bitcast<u32>(boundary_pos0[j].w) & BOUNDARY_IN_TISSUE) != 0u) {
+                    sum_bs += boundary_vel[j].w * w_poly6(kx, r);
+                }
             }
         }
     }
@@ -100,7 +108,7 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    let n_s = sum_s / params.rho0_s;
+    let n_s = (sum_s + sum_bs) / params.rho0_s;
     let n_l = rho / params.rho0_l;
     let raw = params.ambient_pressure + params.k_l * (n_s + n_l - 1.0 + params.c1 * n_s * n_l);
     // p_a + (2.53) clamped at 0 unless the liquid may take tension here; an outlet's buffer carries its

@@ -328,7 +328,7 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
             let xij = min_image_wrapped(xi - e.pos);
             let r2 = dot3(xij, xij);
             if (r2 < r2l) {
-                let obj = bitcast<u32>(boundary_pos0[j].w);
+                let obj = boundary_object(j);
                 let slip = no_slip_factor(obj, xi, e.pos);
                 let o = objects[obj];
                 let r = sqrt(r2);
@@ -501,7 +501,7 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
             if (r2 < r2s) {
                 let r = sqrt(r2);
                 let grad = xib * grad_cubic_factor(ks, r);
-                let o = objects[bitcast<u32>(boundary_pos0[j].w)];
+                let o = objects[boundary_object(j)];
                 var bracket: f32;
                 if (o.density < 0.0) {
                     bracket = 2.0 * max(pr, 0.0) * inv2;

@@ -293,7 +293,7 @@ fn integrate_boundary(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let p0 = boundary_pos0[i];
-    let o = objects[bitcast<u32>(p0.w)];
+    let o = objects[boundary_object(i)];
     boundary_pos[i] = vec4<f32>(p0.xyz + o.disp.xyz, boundary_pos[i].w);
     boundary_vel[i] = vec4<f32>(o.vel.xyz, boundary_vel[i].w);
 }

@@ -122,3 +122,21 @@ fn struct_layouts_match_wgsl() {
     }
     assert!(checked >= 5);
 }
+
+/// The WGSL flag bit of a boundary particle that stands in the tissue's place is the Rust one.
+#[test]
+fn boundary_in_tissue_bit_matches_rust() {
+    let module = validate("density").unwrap_or_else(|e| panic!("{e}"));
+    let c = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some("BOUNDARY_IN_TISSUE"))
+        .map(|(_, c)| c.init)
+        .expect("BOUNDARY_IN_TISSUE in density.wgsl");
+    match module.global_expressions[c] {
+        naga::Expression::Literal(naga::Literal::U32(v)) => {
+            assert_eq!(v, perfuse::sim::gpu::gpu_types::BOUNDARY_IN_TISSUE)
+        }
+        ref e => panic!("BOUNDARY_IN_TISSUE is {e:?}, not a u32 literal"),
+    }
+}

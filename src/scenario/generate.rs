@@ -57,6 +57,10 @@ pub struct GeneratedParticles {
     pub boundary_object: Vec<u32>,
     pub boundary_mass_liquid: Vec<f64>,
     pub boundary_mass_solid: Vec<f64>,
+    /// Per boundary particle: it stands in a cavity in the tissue's place (in the lattice cell of a
+    /// solid particle the cavity removed — a needle's walls inside the specimen), so it continues the
+    /// solid in the liquid's nˢ as it continues the liquid in ρˡ (§4.1; README: deviations from SPEC).
+    pub boundary_in_tissue: Vec<bool>,
     pub objects: Vec<BoundaryObject>,
     /// Δx and h of each phase [m] (0 where the phase is absent).
     pub dx_liquid: f64,
@@ -361,7 +365,8 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
     let m_bl =
         if g.dx_liquid > 0.0 { g.mass_liquid * (g.dx_solid / g.dx_liquid).powi(d as i32) / n_share } else { 0.0 };
     g.solid_liquid_boundary_mass = membrane.iter().map(|&mem| if mem { m_bl } else { 0.0 }).collect();
-    empty_cavities(&mut g, s, &perfusing);
+    let removed_solid = empty_cavities(&mut g, s, &perfusing);
+    let in_tissue = TissueSites::new(&removed_solid, g.dx_solid, d);
 
     let default_spacing = if g.dx_solid > 0.0 { g.dx_solid } else { g.dx_liquid };
     for (k, b) in s.boundaries.iter().enumerate() {
@@ -379,6 +384,7 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
             g.boundary_object.push(k as u32);
             g.boundary_mass_liquid.push(ml);
             g.boundary_mass_solid.push(ms);
+            g.boundary_in_tissue.push(in_tissue.covers(p));
         }
         g.objects.push(BoundaryObject {
             name: b.name.clone(),
@@ -491,13 +497,15 @@ pub fn moulded_bed(points: Vec<V3>, solid: &[V3], fixed: &[bool], gravity: V3, m
 /// (capsule included) and the perfusing liquid (`perfusing`: one flag per liquid particle); liquid
 /// the scenario places with its own generators stays (a primed needle). Runs after the capsule is
 /// built, so the hole's faces get no capsule lining (the needle pierced the capsule; it was not grown
-/// around it), and before the bond table is built, so no bond crosses the hole.
-fn empty_cavities(g: &mut GeneratedParticles, s: &Scenario, perfusing: &[bool]) {
+/// around it), and before the bond table is built, so no bond crosses the hole. Returns the positions
+/// of the solid particles it removed: the tissue's place, which a tool's walls may take.
+fn empty_cavities(g: &mut GeneratedParticles, s: &Scenario, perfusing: &[bool]) -> Vec<V3> {
     if s.cavities.is_empty() {
-        return;
+        return Vec::new();
     }
     let outside = |p: &V3| !s.cavities.iter().any(|r| r.contains(*p, s.dimensions));
     let keep_s: Vec<bool> = g.solid.pos.iter().map(outside).collect();
+    let removed = g.solid.pos.iter().zip(&keep_s).filter(|(_, k)| !**k).map(|(p, _)| *p).collect();
     let keep_l: Vec<bool> = (0..g.liquid.pos.len())
         .map(|i| !perfusing.get(i).copied().unwrap_or(false) || outside(&g.liquid.pos[i]))
         .collect();
@@ -509,6 +517,49 @@ fn empty_cavities(g: &mut GeneratedParticles, s: &Scenario, perfusing: &[bool]) 
     g.liquid.pos = kept(&g.liquid.pos, &keep_l);
     g.liquid.vel = kept(&g.liquid.vel, &keep_l);
     g.liquid.mass = kept(&g.liquid.mass, &keep_l);
+    removed
+}
+
+/// The lattice cells of the solid particles a cavity removed, hashed by cell for [`TissueSites::covers`].
+struct TissueSites {
+    dx: f64,
+    d: usize,
+    cells: std::collections::HashMap<[i64; 3], Vec<V3>>,
+}
+
+impl TissueSites {
+    fn new(sites: &[V3], dx: f64, d: usize) -> TissueSites {
+        let mut cells: std::collections::HashMap<[i64; 3], Vec<V3>> = std::collections::HashMap::new();
+        if dx > 0.0 {
+            for p in sites {
+                cells.entry(Self::key(*p, dx)).or_default().push(*p);
+            }
+        }
+        TissueSites { dx, d, cells }
+    }
+
+    fn key(p: V3, dx: f64) -> [i64; 3] {
+        [(p[0] / dx).floor() as i64, (p[1] / dx).floor() as i64, (p[2] / dx).floor() as i64]
+    }
+
+    /// Whether `p` lies in the lattice cell (the cube of side Δx_s centred on it) of a removed site.
+    fn covers(&self, p: V3) -> bool {
+        if self.cells.is_empty() {
+            return false;
+        }
+        let half = 0.5 * self.dx * (1.0 + 1e-9);
+        let k = Self::key(p, self.dx);
+        let span = |a: usize| if a < self.d { -1..=1 } else { 0..=0 };
+        span(0).any(|i| {
+            span(1).any(|j| {
+                span(2).any(|l| {
+                    self.cells
+                        .get(&[k[0] + i, k[1] + j, k[2] + l])
+                        .is_some_and(|v| v.iter().any(|q| (0..self.d).all(|a| (p[a] - q[a]).abs() <= half)))
+                })
+            })
+        })
+    }
 }
 
 /// The entries of `v` whose `keep` flag is set.

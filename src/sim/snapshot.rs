@@ -17,7 +17,9 @@ use serde::{Deserialize, Serialize};
 /// their solid contact (`BoundaryObject::friction`, `ObjectGpu`/`MotionGpu.friction`). 3: the suction's
 /// valve (`CpuState::suction_held`, the GPU mirror's `suction_held`; `Command::SetSuction`). 4: the GPU
 /// keeps τ and R as their upper triangles (`StressGpu`, 48 bytes per solid particle instead of 96).
-pub const SNAPSHOT_LAYOUT: u32 = 4;
+/// 5: boundary particles carry the solid-equivalent mass they show the liquid's nˢ (`BoundarySet::m_sn`;
+/// the GPU's object word its `BOUNDARY_IN_TISSUE` bit).
+pub const SNAPSHOT_LAYOUT: u32 = 5;
 
 /// One keyframe of a simulation.
 #[derive(Clone, Debug, Serialize, Deserialize)]

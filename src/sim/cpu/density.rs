@@ -1,7 +1,8 @@
 //! Densities, volume fractions and penalty pressures — twin of `shaders/density.wgsl`.
 //!
 //! * `density_liquid`: ρˡ by summation over L ∪ B_l (2.46), nˡ = ρ/ρ₀ˡ, nˢ by summation of the solid
-//!   (SPEC D-8), pˡ = k_sat(nˢ + nˡ − 1 + C₁nˢnˡ) (2.53)/(3.5, D-9), clamped at 0 unless
+//!   (SPEC D-8) and of the solid-equivalent mass of walls that stand in the tissue's place (a needle's
+//!   walls in its cavity: §4.1's continuation of the phase), pˡ = k_sat(nˢ + nˡ − 1 + C₁nˢnˡ) (2.53)/(3.5, D-9), clamped at 0 unless
 //!   `liquid_tension` (the liquid sustains no tension; README: deviations from SPEC) and nˢ is below
 //!   `liquid_tension_below_ns` or the particle lies in a `liquid_tension_in` region; plus the ambient
 //!   pressure p_a (`numerics.ambient_pressure`) before the clamp; in an outlet's buffer the outlet's
@@ -36,7 +37,17 @@ pub fn density_liquid(
             let xi = l.x[i];
             let mut rho = 0.0f32;
             nb.liquid.for_each(xi, kl.r, |j, _, r| rho += l.m[j] * kl.w_poly6(r));
-            nb.boundary.for_each(xi, kl.r, |j, _, r| rho += b.m_l[j] * kl.w_poly6(r));
+            // the walls continue the liquid in ρ (2.46) within R_l and, where they stand in the tissue's
+            // place, the solid in nˢ within R_× (§4.1; README: deviations from SPEC)
+            let mut sum_bs = 0.0f32;
+            nb.boundary.for_each(xi, kl.r.max(kx.r), |j, _, r| {
+                if r < kl.r {
+                    rho += b.m_l[j] * kl.w_poly6(r);
+                }
+                if r < kx.r {
+                    sum_bs += b.m_sn[j] * kx.w_poly6(r);
+                }
+            });
             // One pass over the solid (R_× ≥ R_l): membrane particles as liquid boundary, and nˢ.
             let mut sum_s = 0.0f32;
             nb.solid.for_each(xi, kx.r, |j, _, r| {
@@ -45,7 +56,7 @@ pub fn density_liquid(
                 }
                 sum_s += s.m[j] * kx.w_poly6(r);
             });
-            let n_s = sum_s / p.rho0_s;
+            let n_s = (sum_s + sum_bs) / p.rho0_s;
             let n_l = rho / p.rho0_l;
             let raw = p.ambient_pressure + p.k_l * (n_s + n_l - 1.0 + p.c1 * n_s * n_l);
             // p_a + (2.53) clamped at 0 unless the liquid may take tension here (`liquid_tension_below_ns`,

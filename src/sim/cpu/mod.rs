@@ -127,6 +127,9 @@ pub struct BoundarySet {
     pub v: Vec<Vec3>,
     pub m_l: Vec<f32>,
     pub m_s: Vec<f32>,
+    /// Solid-equivalent mass the particle shows the liquid's nˢ (D-8): m_s where the wall stands in a
+    /// cavity in the tissue's place (`GeneratedParticles::boundary_in_tissue`), else 0.
+    pub m_sn: Vec<f32>,
     pub object: Vec<u32>,
 }
 
@@ -293,6 +296,12 @@ impl CpuSolver {
             v: vec![Vec3::ZERO; nb],
             m_l: g.boundary_mass_liquid.iter().map(|&m| m as f32).collect(),
             m_s: g.boundary_mass_solid.iter().map(|&m| m as f32).collect(),
+            m_sn: g
+                .boundary_mass_solid
+                .iter()
+                .zip(&g.boundary_in_tissue)
+                .map(|(&m, &t)| if t { m as f32 } else { 0.0 })
+                .collect(),
             object: g.boundary_object.clone(),
         };
         let contacts = g
@@ -989,6 +998,71 @@ mod tests {
         assert!((on_plate - 0.4).abs() < 0.004, "on the plate nˡ = {on_plate}");
         assert!(p_on.abs() < 500.0, "on the plate pˢ = {p_on} Pa");
         assert!(free < 0.38 && p_free < -1000.0, "a free face's deficit: nˡ {free}, pˢ {p_free} Pa");
+    }
+
+    /// A wall that stands in a cavity in the tissue's place (a needle's, §4.1) continues the solid in the
+    /// liquid's nˢ (D-8) as every wall continues the liquid in ρ (2.46): a square needle in a perfused
+    /// block, both lattices and the needle's faces on the same planes. The generator flags the needle's
+    /// particles inside the block's extent and not the part above it; the blood beside the needle
+    /// reads the nˢ of the same places without the needle within 1 % (0.604 against 0.600) and its
+    /// pˡ within 1 % of k_l (+0.66 kPa: the walls' half-spacing lattice), while the same blood with the
+    /// walls' solid share taken away reads the deficit of a free face (nˢ 0.444, −15 kPa).
+    #[test]
+    fn a_wall_in_the_tissues_place_continues_the_solid_in_the_liquids_fraction() {
+        let text = "Scenario(name: \"t\", dimensions: 3, domain: Domain(min: (-0.02, -0.02, -0.008), max: (0.02, 0.02, 0.03)), \
+             liquid: Some(Liquid(density: 1000.0, viscosity: 0.35, stiffness: Some(1e5))), \
+             solid: Some(Solid(density: 1000.0, c10: 1e5, c01: 400.0, k_s: 1e5, n_sat: 0.6, k_sat: 1e5, friction: 1e6)), \
+             numerics: Numerics(dx_liquid: Some(0.002), dx_solid: Some(0.002), liquid_tension: true), \
+             particles: [PerfusedBlock(min: (-0.012, -0.012, 0.0), max: (0.012, 0.012, 0.016), solid_fraction: 0.6, \
+             liquid_fraction: 0.4)], \
+             boundaries: [Boundary(name: \"needle\", shape: Box(min: (-0.004, -0.004, 0.006), max: (0.004, 0.004, 0.022)), \
+             spacing: Some(0.001))], \
+             cavities: [Box(min: (-0.004, -0.004, 0.006), max: (0.004, 0.004, 0.022))], duration: 1.0)";
+        let sc = Scenario::from_str_named(text, "test").expect("valid test scenario");
+        // the same block without the needle: the blood at the same places is interior tissue
+        let plain = text.split(", boundaries:").next().expect("text").to_string() + ", duration: 1.0)";
+        let sc_plain = Scenario::from_str_named(&plain, "test").expect("valid test scenario");
+        let g = generate(&sc);
+        let flagged = g.boundary_in_tissue.iter().filter(|&&t| t).count();
+        for (p, &t) in g.boundary_pos.iter().zip(&g.boundary_in_tissue) {
+            assert_eq!(t, p[2] < 0.016, "wall particle at {p:?}");
+        }
+        assert!(
+            flagged > 0 && flagged < g.boundary_pos.len(),
+            "{flagged} of {} in the tissue's place",
+            g.boundary_pos.len()
+        );
+        let beside = |sc: &Scenario, share: bool| {
+            let g = generate(sc);
+            let mut s = CpuSolver::new(Params::new(sc, &g), &g).expect("solver");
+            if !share {
+                s.st.boundary.m_sn.iter_mut().for_each(|m| *m = 0.0);
+            }
+            s.evaluate(false);
+            // the blood in the first column outside the needle's ±x faces, away from the block's faces
+            let w = |x: Vec3| s.params.to_world(x);
+            let near: Vec<usize> = (0..s.st.liquid.x.len())
+                .filter(|&i| {
+                    let x = w(s.st.liquid.x[i]);
+                    x[0].abs() > 0.004 && x[0].abs() < 0.006 && x[1].abs() < 0.003 && x[2] > 0.008 && x[2] < 0.012
+                })
+                .collect();
+            assert!(!near.is_empty(), "blood beside the needle found");
+            let n = near.len() as f32;
+            let n_s = near.iter().map(|&i| s.st.liquid.n_s[i]).sum::<f32>() / n;
+            let pr = near.iter().map(|&i| s.st.liquid.p[i]).sum::<f32>() / n;
+            (n_s, pr)
+        };
+        let (with, p_with) = beside(&sc, true);
+        let (without, p_without) = beside(&sc, false);
+        let (bulk, p_bulk) = beside(&sc_plain, true);
+        eprintln!(
+            "blood beside the needle: nˢ {with:.4}, pˡ {p_with:.0} Pa; without the walls' solid share nˢ {without:.4}, \
+             pˡ {p_without:.0} Pa; at the same places without the needle nˢ {bulk:.4}, pˡ {p_bulk:.0} Pa"
+        );
+        assert!((with - bulk).abs() < 0.006, "beside the needle nˢ = {with}");
+        assert!((p_with - p_bulk).abs() < 1000.0, "beside the needle pˡ = {p_with} Pa");
+        assert!(without < 0.57 && p_without < p_bulk - 5000.0, "without the share: nˢ {without}, pˡ {p_without} Pa");
     }
 
     /// Evaluation 0 reuses the liquid's density sums and the solid's nˡ of the previous step's

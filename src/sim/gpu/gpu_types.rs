@@ -381,6 +381,11 @@ pub struct SinkGpu {
     pub _pad2: u32,
 }
 
+/// High bit of a boundary particle's object word in `boundary_pos0.w` (common.wgsl): the particle stands
+/// in a cavity in the tissue's place and shows the liquid's nˢ its solid-equivalent mass
+/// (`BoundarySet::m_sn`).
+pub const BOUNDARY_IN_TISSUE: u32 = 0x8000_0000;
+
 /// Emitters and sinks per scenario (`EmitState`'s fixed arrays; `scenario` validation limits).
 pub const MAX_EMITTERS: usize = 8;
 pub const MAX_SINKS: usize = 8;

@@ -102,6 +102,9 @@ pub struct GpuSolver {
     beds: crate::sim::bed::BedTable,
     boundary_x0: Vec<Vec3>,
     boundary_object: Vec<u32>,
+    /// Per boundary particle: it stands in the tissue's place (`BoundarySet::m_sn` > 0); uploaded as the
+    /// high bit of its object word (`BOUNDARY_IN_TISSUE`).
+    boundary_in_tissue: Vec<bool>,
     gravity: Vec3,
     damping: f32,
     damping_solid_gravity_only: bool,
@@ -160,6 +163,11 @@ enum Item {
     SyncCounts,
 }
 
+/// `boundary_pos0.w` of a boundary particle: its object index, with `BOUNDARY_IN_TISSUE` where it
+/// stands in the tissue's place (`BoundarySet::m_sn` > 0), as bits.
+fn object_word(object: u32, in_tissue: bool) -> f32 {
+    f32::from_bits(object | if in_tissue { gpu_types::BOUNDARY_IN_TISSUE } else { 0 })
+}
 fn v4(v: Vec3, w: f32) -> [f32; 4] {
     [v.x, v.y, v.z, w]
 }
@@ -387,6 +395,7 @@ impl GpuSolver {
             beds: cpu.beds.clone(),
             boundary_x0: st.boundary.x0.clone(),
             boundary_object: st.boundary.object.clone(),
+            boundary_in_tissue: st.boundary.m_sn.iter().map(|&m| m > 0.0).collect(),
             gravity: st.gravity,
             damping: st.damping,
             damping_solid_gravity_only: st.damping_solid_gravity_only,
@@ -444,7 +453,8 @@ impl GpuSolver {
         out.push((Slot::BondLimit, bytes(&s.bond_limit)));
         out.push((Slot::BoundaryPos, bytes(&zip4(&b.x, &|i| b.m_l[i]))));
         out.push((Slot::BoundaryVel, bytes(&zip4(&b.v, &|i| b.m_s[i]))));
-        let p0: Vec<[f32; 4]> = (0..b.x.len()).map(|i| v4(b.x0[i], f32::from_bits(b.object[i]))).collect();
+        let p0: Vec<[f32; 4]> =
+            (0..b.x.len()).map(|i| v4(b.x0[i], object_word(b.object[i], b.m_sn[i] > 0.0))).collect();
         out.push((Slot::BoundaryPos0, bytes(&p0)));
     }
 
@@ -624,10 +634,16 @@ impl GpuSolver {
         Ok(())
     }
 
-    /// Writes the boundary particles' rest positions (and objects) from the host's copy.
+    /// Writes the boundary particles' rest positions (and objects, with the in-tissue bit) from the
+    /// host's copy.
     fn upload_boundary_pos0(&self) -> Result<(), GpuError> {
-        let p0: Vec<[f32; 4]> =
-            self.boundary_x0.iter().zip(&self.boundary_object).map(|(x, o)| v4(*x, f32::from_bits(*o))).collect();
+        let p0: Vec<[f32; 4]> = self
+            .boundary_x0
+            .iter()
+            .zip(&self.boundary_object)
+            .zip(&self.boundary_in_tissue)
+            .map(|((x, o), &t)| v4(*x, object_word(*o, t)))
+            .collect();
         if !p0.is_empty() {
             self.ctx.queue.write_buffer(self.buffer(Slot::BoundaryPos0)?, 0, bytemuck::cast_slice(&p0));
         }

@@ -77,6 +77,8 @@ pub const DENSITY_LIQUID: PassSpec = pass(
         SolidVel,
         SolidFlags,
         BoundaryPos,
+        BoundaryVel,
+        BoundaryPos0,
         NBR_ALL[0],
         NBR_ALL[1],
         NBR_ALL[2],
