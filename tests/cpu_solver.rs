@@ -85,6 +85,40 @@ fn divergence_is_reported_and_last_good_state_kept() {
     assert!(err.to_string().contains("last good state is kept"));
 }
 
+/// `Simulation::advance` on the CPU copies the last good state once per batch of
+/// `cpu::BACKUP_EVERY` steps instead of before every step, and re-runs a diverged batch one step at a
+/// time: it must report the same diverging step and particle as stepping one by one, keep the same last
+/// good state (bit for bit) and count the same good steps.
+#[test]
+fn advance_diverges_as_single_steps_do() {
+    // a steady push (3000 m/s² sideways) that crosses the speed limit well after the first batch
+    let sc = Scenario::from_str_with_overrides(BLOCK, "block", &["numerics.max_speed=3.0".into()]).expect("valid");
+    let push = Command::SetGravity([3000.0, 0.0, 0.0]);
+    let mut single = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    single.apply(&push).expect("gravity");
+    let err_single = loop {
+        if let Err(e) = single.step() {
+            break e;
+        }
+        assert!(single.stats().steps < 10_000, "never diverged");
+    };
+    let mut batched = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    batched.apply(&push).expect("gravity");
+    let err_batched = batched.advance(20_000, f64::INFINITY).expect_err("must diverge");
+    eprintln!("single: {err_single}\nbatched: {err_batched}");
+    let (SimError::Diverged { step: k1, particle: p1, .. }, SimError::Diverged { step: k2, particle: p2, .. }) =
+        (&err_single, &err_batched)
+    else {
+        panic!("both must diverge: {err_single} / {err_batched}");
+    };
+    assert_eq!((k1, p1), (k2, p2), "diverging step and particle");
+    assert!(*k1 > perfuse::sim::cpu::BACKUP_EVERY, "the divergence should lie past the first batch (step {k1})");
+    assert_eq!(single.stats().steps, batched.stats().steps, "good steps counted");
+    assert_eq!(single.read_state().expect("state").hash(), batched.read_state().expect("state").hash());
+    // the kept state steps on as the single-stepped one does
+    assert_eq!(single.step().is_err(), batched.step().is_err());
+}
+
 #[test]
 fn commands_move_boundaries_and_reject_nonsense() {
     let mut sim = Simulation::new(&block(), BackendKind::Cpu).expect("sim");

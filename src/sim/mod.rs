@@ -231,6 +231,17 @@ pub struct RunStats {
     pub broken_bonds: u64,
 }
 
+impl RunStats {
+    /// Counts one step taken.
+    fn record(&mut self, info: &StepInfo) {
+        self.steps += 1;
+        self.dt_min = self.dt_min.min(info.dt as f64);
+        self.dt_max = self.dt_max.max(info.dt as f64);
+        *self.dt_limited_by.entry(info.limit.name().to_string()).or_insert(0) += 1;
+        self.broken_bonds += info.broken_bonds;
+    }
+}
+
 /// What the emitters and sinks have done (issue 7): `summary.json`'s `emitted_volume_m3` and the
 /// volume balance initial + emitted − sunk = live, to the particle.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
@@ -359,26 +370,23 @@ impl Simulation {
                 info?
             }
         };
-        let s = &mut self.stats;
-        s.steps += 1;
-        s.dt_min = s.dt_min.min(info.dt as f64);
-        s.dt_max = s.dt_max.max(info.dt as f64);
-        *s.dt_limited_by.entry(info.limit.name().to_string()).or_insert(0) += 1;
-        s.broken_bonds += info.broken_bonds;
+        self.stats.record(&info);
         Ok(info)
     }
 
     /// Takes up to `max_steps` steps, stopping after the first step whose end time reaches `t_end`
-    /// (none if the clock is already there). The CPU loops over `step`; the GPU encodes the steps in
+    /// (none if the clock is already there). The CPU steps in batches with one copy of the last good
+    /// state each (`CpuSolver::advance`); the GPU encodes the steps in
     /// batches with one readback each (`GpuSolver::advance`). [`RunStats`] count every step taken, also
     /// when a later one diverges (then `SimError::Diverged` names the diverging step and the last good
     /// state is kept, as with [`Simulation::step`]).
     pub fn advance(&mut self, max_steps: u32, t_end: f64) -> Result<Advance, SimError> {
         let mut adv = Advance { t: self.time(), ..Default::default() };
         match &mut self.engine {
-            Engine::Cpu(_) => {
-                while adv.steps < u64::from(max_steps) && self.time() < t_end {
-                    let info = self.step()?;
+            Engine::Cpu(c) => {
+                let stats = &mut self.stats;
+                c.advance(u64::from(max_steps), t_end, |info| {
+                    stats.record(info);
                     adv.steps += 1;
                     let dt = info.dt as f64;
                     if adv.steps == 1 {
@@ -391,7 +399,7 @@ impl Simulation {
                     }
                     adv.broken_bonds += info.broken_bonds;
                     adv.t = info.t;
-                }
+                })?;
             }
             Engine::Gpu(g) => {
                 let mut acc = gpu::BatchTotals::default();
