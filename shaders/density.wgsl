@@ -42,7 +42,7 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.counts.x) {
         return;
     }
-    let i = liquid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
+    let i = liquid_dispatched(gid.x); // cell-ordered dispatch (common.wgsl)
     let kl = params.k_liquid;
     let kx = params.k_cross;
     let xi = liquid_pos[i].xyz;
@@ -58,12 +58,11 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
         for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
-            let e = liquid_order[q];
-            let j = e.id;
-            let xij = min_image_wrapped(xi - e.pos);
+            let e = liquid_candidate(q);
+            let xij = min_image_wrapped(xi - e.pos_m.xyz);
             let r2 = dot3(xij, xij);
             if (r2 < r2l) {
-                rho += liquid_pos[j].w * w_poly6(kl, sqrt(r2));
+                rho += liquid_candidate_mass(e) * w_poly6(kl, sqrt(r2));
             }
         }
     }
@@ -205,12 +204,11 @@ fn solid_density(gid: vec3<u32>, sum_liquid: bool) {
             let c = nbr_span(ci, k);
             if (c.x < 0) { continue; }
             for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
-                let e = liquid_order[q];
-                let j = e.id;
-                let xij = min_image_wrapped(xi - e.pos);
+                let e = liquid_candidate(q);
+                let xij = min_image_wrapped(xi - e.pos_m.xyz);
                 let r2 = dot3(xij, xij);
                 if (r2 < r2x) {
-                    sum += liquid_pos[j].w * w_poly6(kx, sqrt(r2));
+                    sum += liquid_candidate_mass(e) * w_poly6(kx, sqrt(r2));
                 }
             }
         }

@@ -203,16 +203,16 @@ fn outlet_velocity(i: u32, xi: vec3<f32>, vi: vec3<f32>, n: vec3<f32>, rho_o: f3
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
         for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
-            let e = liquid_order[q];
-            let j = e.id;
-            let xij = min_image_wrapped(xi - e.pos);
+            let e = liquid_candidate(q);
+            let j = e.j;
+            let xij = min_image_wrapped(xi - e.pos_m.xyz);
             let r2 = dot3(xij, xij);
             if (r2 < r2l && j != i) {
                 let w = w_poly6(kl, sqrt(r2));
                 let vj = liquid_vel[j].xyz;
                 all_w += w;
                 all_v += vj * w;
-                if (outlet_find(liquid_pos[j].xyz) < 0) {
+                if (outlet_find(e.pos_m.xyz) < 0) {
                     // continuity across the buffer's face, ρ_j v_j / ρ_o (forces.rs outlet_velocity)
                     sum_w += w;
                     sum_v += vj * (w * liquid_dens[j].x / rho_o);
@@ -252,7 +252,7 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     if (gid.x >= params.counts.x) {
         return;
     }
-    let i = liquid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
+    let i = liquid_dispatched(gid.x); // cell-ordered dispatch (common.wgsl)
     let kl = params.k_liquid;
     let kx = params.k_cross;
     let g = liquid_gravity();
@@ -286,13 +286,13 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
         for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
-            let e = liquid_order[q];
-            let j = e.id;
-            let xij = min_image_wrapped(xi - e.pos);
+            let e = liquid_candidate(q);
+            let j = e.j;
+            let xij = min_image_wrapped(xi - e.pos_m.xyz);
             let r2 = dot3(xij, xij);
             if (r2 < r2l && j != i) {
                 let r = sqrt(r2);
-                let mj = liquid_pos[j].w;
+                let mj = liquid_candidate_mass(e);
                 let dj = liquid_dens[j];
                 let vj = liquid_vel[j].xyz;
                 let grad = xij * grad_spiky_factor(kl, r);
@@ -542,24 +542,25 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
             let c = nbr_span(ci, k);
             if (c.x < 0) { continue; }
             for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
-                let e = liquid_order[q];
-                let j = e.id;
-                let xij = min_image_wrapped(xi - e.pos);
+                let e = liquid_candidate(q);
+                let j = e.j;
+                let xij = min_image_wrapped(xi - e.pos_m.xyz);
                 let r2 = dot3(xij, xij);
                 if (r2 < r2x) {
                     let dj = liquid_dens[j];
+                    let mj = liquid_candidate_mass(e);
                     let r = sqrt(r2);
                     if (params.kbar > 0.0) {
                         let kf = friction_coefficient(n_s, dj.z);
-                        f += (vi - liquid_vel[j].xyz) * (liquid_pos[j].w / dj.x * kf * w_poly6(kx, r));
+                        f += (vi - liquid_vel[j].xyz) * (mj / dj.x * kf * w_poly6(kx, r));
                     }
                     if (params.wicking > 0.0 && r > 0.0) {
-                        fw -= xij * (liquid_pos[j].w / dj.x * wicking_pair(kx.h, n_s, di.y, r) / r);
+                        fw -= xij * (mj / dj.x * wicking_pair(kx.h, n_s, di.y, r) / r);
                     }
                     if (membrane && r2 < r2l) {
                         let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, liquid_vel[j].xyz, vi4.w, vi, -xij, r, -1.0, 0.0, 1.0, g_l,
                                                     params.ambient_pressure);
-                        fm -= on_j * liquid_pos[j].w;
+                        fm -= on_j * mj;
                     }
                 }
             }

@@ -4,7 +4,7 @@
 //! `fracture`), called in the order of `sim::passes::STEP` (SPEC §5.2).
 //!
 //! The solid is kept in id order; the liquid is renumbered into the cell order of its neighbour list
-//! every step (`grid::grid_reorder`, as the GPU) and read back in id order ([`State`]). Neighbour sums
+//! at every grid build (`grid::grid_reorder`, as the GPU) and read back in id order ([`State`]). Neighbour sums
 //! run in the canonical cell order of `grid`, so two runs are bit-identical regardless of the rayon
 //! thread count (each particle's sum is sequential).
 
@@ -427,10 +427,16 @@ impl CpuSolver {
         }
     }
 
+    /// The three cell lists on the current positions, the liquid renumbered in its cell order when
+    /// `numerics.reorder_liquid` (`grid::grid_reorder`; the GPU's PLACE_AND_BIN and STEP_SECOND
+    /// likewise: its liquid walks read the particle arrays as the list).
     pub fn build_grids(&mut self) {
         self.grid_generation += 1;
         let g = &self.params.grid;
         grid::grid_build(g, &self.st.liquid.x, &mut self.grids.liquid);
+        if self.params.reorder_liquid {
+            grid::grid_reorder(&mut self.st.liquid, &mut self.grids.liquid);
+        }
         grid::grid_build(g, &self.st.solid.x, &mut self.grids.solid);
         grid::grid_build(g, &self.st.boundary.x, &mut self.grids.boundary);
     }
@@ -624,9 +630,6 @@ impl CpuSolver {
         let t0 = self.timers.lap("emit", t0);
         // 6: grid on xⁿ⁺¹; the liquid renumbered in its cell order.
         self.build_grids();
-        if self.params.reorder_liquid {
-            grid::grid_reorder(&mut self.st.liquid, &mut self.grids.liquid);
-        }
         self.timers.lap("grid", t0);
         // 7–8: evaluation 1 and corrector.
         self.evaluate(false);
@@ -1148,8 +1151,9 @@ mod tests {
         assert_ne!(s.solid_n_l_generation, Some(s.grid_generation));
     }
 
-    /// `grid_reorder` is a renumbering: a perfused block whose liquid starts in reversed storage order
-    /// and moves at random velocities is, after every step, stored in the cell order of its list (a
+    /// `grid_reorder` is a renumbering: a perfused block whose liquid is put in reversed storage order
+    /// (`build_grids` renumbers it at once) and moves at random velocities is, after every step, stored
+    /// in the cell order of its list (a
     /// fresh build gives 0, 1, 2, …), read back in id order, and after 40 steps in the same state (by
     /// id) as the same block never renumbered, up to the rounding of sums taken in another order
     /// (issue 4's differential tolerance 10⁻³h; measured ≈ 10⁻¹⁰ m).

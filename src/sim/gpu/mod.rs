@@ -364,7 +364,7 @@ impl GpuSolver {
         let (g0, g1, g2) = (bytes(&[gs(counts.liquid)]), bytes(&[gs(counts.solid)]), bytes(&[gs(counts.boundary)]));
         let max_set = capacity.max(counts.solid).max(counts.boundary) as usize;
         let buffers = SimBuffers::new(&ctx.device, solver_init, [&g0, &g1, &g2], max_set, cells as usize);
-        let pipelines = create_pipelines(&ctx.device, &buffers)?;
+        let pipelines = create_pipelines(&ctx.device, &buffers, params.reorder_liquid)?;
         let batch_staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("perfuse.batch_readback"),
             size: std::mem::size_of::<BatchState>() as u64,
@@ -1539,8 +1539,15 @@ impl PassTimer {
     }
 }
 
-/// One pipeline per entry point, with its explicit layout and bind group(s).
-fn create_pipelines(device: &wgpu::Device, buffers: &SimBuffers) -> Result<HashMap<&'static str, Pipeline>, GpuError> {
+/// One pipeline per entry point, with its explicit layout and bind group(s). `liquid_in_cell_order`
+/// (`numerics.reorder_liquid`) sets the shaders' pipeline constant `LIQUID_IN_CELL_ORDER`: the liquid's
+/// walks then read candidates from the particle arrays themselves (common.wgsl `liquid_candidate`).
+fn create_pipelines(
+    device: &wgpu::Device,
+    buffers: &SimBuffers,
+    liquid_in_cell_order: bool,
+) -> Result<HashMap<&'static str, Pipeline>, GpuError> {
+    let constants = [("LIQUID_IN_CELL_ORDER", if liquid_in_cell_order { 1.0 } else { 0.0 })];
     let mut modules: HashMap<&'static str, wgpu::ShaderModule> = HashMap::new();
     let mut out = HashMap::new();
     for spec in passes::ALL_PASSES {
@@ -1568,7 +1575,7 @@ fn create_pipelines(device: &wgpu::Device, buffers: &SimBuffers) -> Result<HashM
             layout: Some(&pl),
             module,
             entry_point: Some(spec.entry),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions { constants: &constants, ..Default::default() },
             cache: None,
         });
         // a pass over a grid-generic slot gets one bind group per set (grid_reorder binds the liquid's own)

@@ -380,10 +380,17 @@ pub enum Stage {
 pub const GRID_BUILD: &[PassSpec] =
     &[GRID_CLEAR, GRID_COUNT, GRID_SCAN_BLOCKS, GRID_SCAN_TOP, GRID_SCAN_APPLY, GRID_SCATTER, GRID_SORT_CELLS];
 
-/// Boundaries to the current pose and the three cell lists (`move_boundaries` + `build_grids`).
+/// Boundaries to the current pose and the three cell lists (`move_boundaries` + `build_grids`), the
+/// liquid renumbered in its cell order when `numerics.reorder_liquid` (as every liquid grid build is:
+/// the liquid walks rely on it, common.wgsl `LIQUID_IN_CELL_ORDER`). The state the host hands the device
+/// is already in that order (the CPU twin's, or a batch's), so here the renumbering finds nothing to
+/// move; were it to move anything, the liquid's ρ, p, a and ṽ would stay behind until the next step's
+/// evaluation rewrites them (grid_reorder moves only what lives across a step).
 pub const PLACE_AND_BIN: &[Stage] = &[
     Stage::Pass(INTEGRATE_BOUNDARY),
     Stage::Grid(GridOf::Liquid),
+    Stage::Pass(GRID_REORDER_GATHER),
+    Stage::Pass(GRID_REORDER_APPLY),
     Stage::Grid(GridOf::Solid),
     Stage::Grid(GridOf::Boundary),
 ];
