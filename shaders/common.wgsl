@@ -109,7 +109,7 @@ struct SimParams {
     wc_dx_l: f32,
     // ambient pressure p_a added to (2.53) (numerics.ambient_pressure; 0: none)
     ambient_pressure: f32,
-    _pad1: f32,
+    bond_reach: f32,
 }
 
 // OutletRegion::find: the index k of the first outlet buffer in effect that holds x (boundaries included,

@@ -51,11 +51,37 @@ fn bond_cut(i: u32, j: u32, xi: vec3<f32>, xj: vec3<f32>) -> bool {
     return false;
 }
 
-// Whether any object is a cutting blade (the CPU's `blades` list is not empty): most scenes have none,
-// and then no bond needs bond_cut's test against every object.
-fn any_blade() -> bool {
+// Twin of cpu::fracture::blade_near: can a bond of x_i no longer than params.bond_reach cross object
+// o's blade? (Conservative by a margin of 10⁻³ of the reach; bond_reach = 0: always.)
+fn blade_near(o: ObjectGpu, xi: vec3<f32>) -> bool {
+    if (params.bond_reach <= 0.0) {
+        return true;
+    }
+    let r = params.bond_reach * 1.001;
+    let ax = i32(o.blade) - 1;
+    let mid = 0.5 * (o.geom_a[ax] + o.geom_b[ax]);
+    if (!(abs(xi[ax] - mid) <= r)) {
+        return false;
+    }
+    var dims = 2;
+    if (params.switches.x != 0u) {
+        dims = 3;
+    }
+    for (var k = 0; k < dims; k++) {
+        if (k != ax) {
+            if (!(xi[k] >= o.geom_a[k] - params.k_solid.r - r && xi[k] <= o.geom_b[k] + params.k_solid.r + r)) {
+                return false;
+            }
+        }
+    }
+    return true;
+}
+
+// Whether some cutting blade can reach a bond of x_i (the CPU's `near`): most scenes have no blade and
+// most of an organ lies far from it, and then no bond of i needs bond_cut's test against every object.
+fn blade_within_reach(xi: vec3<f32>) -> bool {
     for (var k = 0u; k < params.switches.w; k++) {
-        if (objects[k].blade != 0u) {
+        if (objects[k].blade != 0u && blade_near(objects[k], xi)) {
             return true;
         }
     }
@@ -71,7 +97,7 @@ fn fracture_apply(@builtin(global_invocation_id) gid: vec3<u32>) {
     let cap = params.counts.w;
     let xi = solid_pos[i].xyz;
     let n = bond_count[i];
-    let blades = any_blade();
+    let blades = blade_within_reach(xi);
     var keep = 0u;
     for (var k = 0u; k < n; k++) {
         let j = bond_table[i * cap + k];

@@ -458,6 +458,17 @@ impl Params {
         }
     }
 
+    /// The longest an intact bond can be: its breaking length, 2h_s or λ_c r₀ with r₀ < 2h_s at the
+    /// table's build (`fracture_build_bonds`); 0 (no pruning) on a periodic domain, where a bond's
+    /// length is a minimum image. The blade test of fracture skips particles farther than this from
+    /// every blade (`fracture::blade_near`).
+    pub fn bond_reach(&self) -> f32 {
+        if self.periodic.iter().any(|&p| p) {
+            return 0.0;
+        }
+        self.k_solid.r * self.critical_stretch.unwrap_or(1.0).max(1.0)
+    }
+
     /// Periodic lengths per axis (0 where not periodic).
     pub fn periodic_len(&self) -> Vec3 {
         let e = self.domain_max - self.domain_min;

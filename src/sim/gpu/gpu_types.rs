@@ -119,7 +119,8 @@ pub struct SimParams {
     pub ap_exp: i32,
     pub wc_dx_l: f32,
     pub ambient_pressure: f32,
-    pub _pad1: f32,
+    /// `Params::bond_reach` (0: every particle tests its bonds against the blades).
+    pub bond_reach: f32,
 }
 
 /// Set counts of a scene, as the uniform block carries them.
@@ -235,7 +236,7 @@ impl SimParams {
             ap_exp: p.ap_exp,
             wc_dx_l: p.wc_dx_l,
             ambient_pressure: p.ambient_pressure,
-            _pad1: 0.0,
+            bond_reach: p.bond_reach(),
         }
     }
 }
