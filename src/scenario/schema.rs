@@ -289,9 +289,10 @@ pub struct Numerics {
     /// `liquid_tension` (a validation error otherwise).
     #[serde(default)]
     pub liquid_artificial_pressure: Option<ArtificialStress>,
-    /// Renumber the liquid into the cell order of its neighbour list every step (`grid_reorder`; issue
-    /// 4), so that the neighbour walks gather velocities and densities from nearby memory as blood
-    /// flows and mixes. Default true; false keeps the generated order (benchmarks of the gain; results
+    /// Renumber the liquid into the cell order of its neighbour list at every grid build
+    /// (`grid_reorder`; issue 4), so that the neighbour walks gather velocities and densities from
+    /// nearby memory as blood flows and mixes, and the GPU's walks read the liquid's own arrays as its
+    /// list. Default true; false keeps the generated order (benchmarks of the gain; results
     /// differ by rounding only, as the order of each sum changes).
     #[serde(default = "d_true")]
     pub reorder_liquid: bool,

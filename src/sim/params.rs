@@ -46,7 +46,8 @@ pub struct Params {
     pub outlets: Vec<OutletRegion>,
     /// Hourglass-control coefficient c of `numerics.hourglass` (0: off).
     pub hourglass: f32,
-    /// `numerics.reorder_liquid`: renumber the liquid by cell every step (`grid_reorder`).
+    /// `numerics.reorder_liquid`: renumber the liquid by cell at every grid build (`grid_reorder`);
+    /// fixed for a solver's life (the GPU compiles its liquid walks for it, `LIQUID_IN_CELL_ORDER`).
     pub reorder_liquid: bool,
     /// Ligament springs of the tethered solid particles: ω² [1/s²] and 2ζω [1/s] (`ligaments`; 0: none).
     pub tether_omega2: f32,
