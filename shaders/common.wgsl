@@ -869,7 +869,7 @@ fn lap_viscosity(k: KernelConsts, r: f32) -> f32 {
 // is particle q and its list position is liquid_pos[q].xyz, bit for bit. A walk over the liquid then
 // reads a candidate's position and mass in one load of liquid_pos[q] instead of the list entry and,
 // inside the support, the particle's mass: on lavapipe, which loads a storage buffer lane by lane, the
-// liquid walks of the density passes ran ≈ 30 % faster (README, Performance).
+// density passes ran ≈ 15 % faster on the 64k block (README, Performance).
 override LIQUID_IN_CELL_ORDER: bool = true;
 
 // Candidate q of the liquid's cell list: xyz its position at the list's build, w its mass when
