@@ -34,7 +34,7 @@ pub struct BenchRow {
     pub dt_limited_by: String,
     /// With `--record`: what recording the session cost.
     pub recording: Option<RecordCost>,
-    /// GPU: host time of the per-batch error scopes (push + pop) per batch [µs], and the batches it
+    /// GPU: host time of the per-batch error scopes (push + pop) per batch \[µs\], and the batches it
     /// is the mean of (the warm-up batch included).
     pub error_scope_us_per_batch: Option<f64>,
     pub batches: Option<u64>,
@@ -47,12 +47,12 @@ pub struct BenchRow {
 pub struct RecordCost {
     pub file_bytes: u64,
     pub keyframes: u64,
-    /// Mean wall time of one keyframe: readback, encoding, compression, write [ms].
+    /// Mean wall time of one keyframe: readback, encoding, compression, write \[ms\].
     pub keyframe_ms: f64,
-    /// Mean size of one keyframe on disk [bytes].
+    /// Mean size of one keyframe on disk \[bytes\].
     pub keyframe_bytes: f64,
     pub hashes: u64,
-    /// Mean wall time of one state hash (a readback) [ms].
+    /// Mean wall time of one state hash (a readback) \[ms\].
     pub hash_ms: f64,
     /// 1 − PS/s(recorded) / PS/s(not recorded), runs of the same length [%] (noisy on short runs).
     pub overhead_measured_pct: f64,

@@ -5,7 +5,7 @@
 //! * [`sim`] — how: one [`sim::Simulation`] API; `sim::cpu` is the rayon reference solver.
 //! * [`analysis`] — analytic references, validation cases, reports and plots.
 //! * [`output`] — CSV frames and `summary.json` of headless runs.
-//! * [`bench`] — particle-steps per second of the back-ends (`perfuse bench`).
+//! * [`bench`](mod@bench) — particle-steps per second of the back-ends (`perfuse bench`).
 //!
 //! **Determinism.** Neighbour sums run in a canonical order (grid cell offsets, then ascending particle
 //! index), each particle's sum is sequential, and reductions are min/max: two runs of a scenario on one

@@ -102,7 +102,7 @@ enum Cmd {
         scenario: PathBuf,
         #[arg(long, value_enum, default_value = "auto")]
         backend: Backend,
-        /// Simulated time to stop at [s] (default: the scenario's duration).
+        /// Simulated time to stop at \[s\] (default: the scenario's duration).
         #[arg(long, conflicts_with = "steps")]
         until: Option<f64>,
         /// Number of steps to run.
@@ -133,7 +133,7 @@ enum Cmd {
         /// Back-ends to measure (side by side; a missing GPU is reported and skipped).
         #[arg(long, value_enum, value_delimiter = ',', default_value = "cpu,gpu")]
         backends: Vec<Backend>,
-        /// Minimum wall time per configuration [s].
+        /// Minimum wall time per configuration \[s\].
         #[arg(long, default_value_t = 5.0)]
         seconds: f64,
         /// Write the rows as JSON.
@@ -157,7 +157,7 @@ enum Cmd {
     Render {
         /// Scenario file (RON).
         scenario: PathBuf,
-        /// Simulated time to render [s] (after the scenario's relaxation); the first frame of a sequence.
+        /// Simulated time to render \[s\] (after the scenario's relaxation); the first frame of a sequence.
         #[arg(long, default_value_t = 0.0)]
         at: f64,
         /// The PNG; a sequence goes to OUT_00000.png, OUT_00001.png, … (OUT without its extension).
@@ -166,7 +166,7 @@ enum Cmd {
         /// Render a sequence: a frame every DT seconds of simulated time from --at to --until.
         #[arg(long, value_name = "DT", requires = "until")]
         every: Option<f64>,
-        /// Last time of a sequence [s] (frames at T, T+DT, … up to it).
+        /// Last time of a sequence \[s\] (frames at T, T+DT, … up to it).
         #[arg(long, value_name = "T2", requires = "every")]
         until: Option<f64>,
         /// Image size, WIDTHxHEIGHT.
@@ -201,7 +201,7 @@ enum Cmd {
         /// Include velocities in the state vector (Table 5.1 case 2).
         #[arg(long)]
         velocities: bool,
-        /// Time between frames [s] (default: summary.json's frame_interval_s).
+        /// Time between frames \[s\] (default: summary.json's frame_interval_s).
         #[arg(long)]
         frame_interval: Option<f64>,
         /// Amplitude fit: `initial` (from the first snapshot, thesis §5.2) or `all` (least squares over
@@ -222,7 +222,7 @@ enum Cmd {
         /// Replay headless without the viewer (prints the final state hash).
         #[arg(long)]
         headless: bool,
-        /// Headless: stop at this simulated time [s], going there through the nearest keyframe.
+        /// Headless: stop at this simulated time \[s\], going there through the nearest keyframe.
         #[arg(long)]
         seek: Option<f64>,
         /// Back-end (default: the one that recorded it; bit-identical only there).
@@ -243,13 +243,13 @@ enum Cmd {
         /// Fraction of the blood volume removed (0..0.6).
         #[arg(long, default_value_t = 0.35)]
         loss: f64,
-        /// Bleeding starts at this time [s] (after a settled baseline).
+        /// Bleeding starts at this time \[s\] (after a settled baseline).
         #[arg(long, default_value_t = 10.0)]
         start: f64,
-        /// Bleeding lasts this long [s] (constant rate).
+        /// Bleeding lasts this long \[s\] (constant rate).
         #[arg(long, default_value_t = 600.0)]
         over: f64,
-        /// Total simulated time [s].
+        /// Total simulated time \[s\].
         #[arg(long, default_value_t = 660.0)]
         duration: f64,
         #[arg(long, default_value = "out/vitals")]

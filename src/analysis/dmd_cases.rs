@@ -22,9 +22,9 @@ use std::time::Instant;
 pub const OSCILLATING_WALL: &str = include_str!("../../assets/scenarios/oscillating_wall.ron");
 pub const DAM_BREAK: &str = include_str!("../../assets/scenarios/dam_break.ron");
 
-/// Forcing frequency of the oscillating wall [Hz] (SPEC §7.13).
+/// Forcing frequency of the oscillating wall \[Hz\] (SPEC §7.13).
 pub const FORCING_HZ: f64 = 0.5;
-/// Tank width of the oscillating wall [m] and tank length of the broken dam [m] (SPEC §7.13, §7.14).
+/// Tank width of the oscillating wall \[m\] and tank length of the broken dam \[m\] (SPEC §7.13, §7.14).
 pub const WALL_TANK_WIDTH: f64 = 1.0;
 pub const DAM_TANK_LENGTH: f64 = 10.3;
 /// SPEC §7.13 (1): the reconstruction is judged over the first ten periods.
@@ -36,9 +36,9 @@ pub struct DmdCase {
     pub record_s: f64,
     pub snapshots: usize,
     pub rank: usize,
-    /// |f| of the largest-amplitude oscillating mode [Hz].
+    /// |f| of the largest-amplitude oscillating mode \[Hz\].
     pub dominant_hz: Option<f64>,
-    /// Smallest |f − FORCING_HZ| among the ten largest modes other than the mean mode [Hz] (SPEC §7.13 (2)).
+    /// Smallest |f − FORCING_HZ| among the ten largest modes other than the mean mode \[Hz\] (SPEC §7.13 (2)).
     pub top10_nearest_forcing_hz: Option<f64>,
     /// Smallest |λ − 1| (the mean-position mode, SPEC §7.13 (3)).
     pub mean_mode_distance: f64,
@@ -46,7 +46,7 @@ pub struct DmdCase {
     pub stabilised_excess: f64,
     /// Fraction of eigenvalues with |λ| < 0.99 (SPEC §7.14 (2)).
     pub fraction_inside_099: f64,
-    /// Largest RMS particle-position error of the stabilised reconstruction within the judged window [m].
+    /// Largest RMS particle-position error of the stabilised reconstruction within the judged window \[m\].
     pub max_rms_position_error_m: f64,
     /// Cumulative singular-value energy at r = 500 (reported; thesis ≈ 99 % for the oscillating wall).
     pub energy_at_500: f64,
@@ -91,11 +91,11 @@ pub fn summarise(model: &DmdModel, s: &Snapshots, sv: &[f64], judged_s: f64) -> 
 /// The amplitude-dependent figures of one record under one amplitude fit (see the module documentation).
 #[derive(Clone, Debug)]
 pub struct AmplitudeFigures {
-    /// |f| of the largest-amplitude oscillating mode [Hz].
+    /// |f| of the largest-amplitude oscillating mode \[Hz\].
     pub dominant_hz: Option<f64>,
-    /// Smallest |f − FORCING_HZ| among the ten largest modes other than the mean mode [Hz].
+    /// Smallest |f − FORCING_HZ| among the ten largest modes other than the mean mode \[Hz\].
     pub top10_nearest_forcing_hz: Option<f64>,
-    /// Largest RMS particle-position error of the stabilised reconstruction within the judged window [m].
+    /// Largest RMS particle-position error of the stabilised reconstruction within the judged window \[m\].
     pub max_rms_position_error_m: f64,
 }
 

@@ -45,8 +45,8 @@ pub fn scripted_hemorrhage(
     Ok(out)
 }
 
-/// Three-second windows of the pulse, sampled every 2 ms: (label, [(t within the window [s], hepatic
-/// arterial inflow [mL/s], systemic arterial pressure [mmHg])]).
+/// Three-second windows of the pulse, sampled every 2 ms: (label, [(t within the window \[s\], hepatic
+/// arterial inflow [mL/s], systemic arterial pressure \[mmHg\])]).
 pub type PulseWindow = (String, Vec<(f64, f64, f64)>);
 
 /// The pulse before the bleeding starts and at the end of the run of [`scripted_hemorrhage`] with the

@@ -23,9 +23,9 @@ use std::time::Instant;
 
 /// The shipped scenario (32³ solid, 30³ liquid, relaxed).
 pub const PROJECTILE: &str = include_str!("../../assets/scenarios/projectile.ron");
-/// Cube side L_c [m]; the path runs along +x through (·, 0, L_c/2).
+/// Cube side L_c \[m\]; the path runs along +x through (·, 0, L_c/2).
 const L_C: f64 = 0.05;
-/// Simulated time of SPEC §7.5's CI variants [s] (after the relaxation).
+/// Simulated time of SPEC §7.5's CI variants \[s\] (after the relaxation).
 pub const QUICK_DURATION: f64 = 0.2;
 
 /// `--set` overrides that re-grid `projectile.ron` to ns³ solid and nl³ liquid (one h = 1.3Δx_s, the
@@ -47,7 +47,7 @@ pub fn lattice_overrides(ns: usize, nl: usize) -> Vec<String> {
 #[derive(Clone, Debug, Default)]
 pub struct ProjectileOutcome {
     pub resolution: String,
-    /// After the relaxation: the largest solid speed [m/s], the top face's mean sag [m] and the bonds
+    /// After the relaxation: the largest solid speed [m/s], the top face's mean sag \[m\] and the bonds
     /// broken while relaxing (not counted below: the counts start after the relaxation).
     pub relaxed_vmax: f64,
     pub relaxed_sag: f64,
@@ -62,7 +62,7 @@ pub struct ProjectileOutcome {
     pub tunnel_initial: usize,
     /// `None` when the run ended before 0.1 s after exit.
     pub tunnel_after: Option<usize>,
-    /// Liquid outside the tissue [m³] at exit and at the end; emitted volume [m³]; particle balance.
+    /// Liquid outside the tissue \[m³\] at exit and at the end; emitted volume \[m³\]; particle balance.
     pub outside_at_exit: f64,
     pub outside_end: f64,
     pub emitted: f64,

@@ -11,7 +11,7 @@ use serde::Serialize;
 /// The state after the relaxation against the state before it.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct RelaxationReport {
-    /// Relaxation time [s] (`relaxation.duration`).
+    /// Relaxation time \[s\] (`relaxation.duration`).
     pub duration_s: f64,
     /// Largest and mean speed of the free solid particles (kinematic ones left out) [m/s].
     pub solid_max_speed_m_per_s: f64,
@@ -27,7 +27,7 @@ pub struct RelaxationReport {
     pub liquid_max_speed_m_per_s: f64,
     pub liquid_mean_speed_m_per_s: f64,
     /// Mean displacement against gravity of the solid's top face — the free solid particles that
-    /// started within Δx_s/2 of the highest one, "up" being −ĝ — positive when it sank [m]; `None`
+    /// started within Δx_s/2 of the highest one, "up" being −ĝ — positive when it sank \[m\]; `None`
     /// without gravity or solid.
     pub top_sag_m: Option<f64>,
     /// Liquid particles outside the solid's body or capsule after the relaxation (nˢ < 0.05).

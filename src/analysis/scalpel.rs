@@ -24,13 +24,13 @@ use std::time::Instant;
 
 /// The shipped scenario (the "thesis" preset, Δx_s = 1.7 mm).
 pub const LIVER_SCALPEL: &str = include_str!("../../assets/scenarios/liver_scalpel.ron");
-/// The blade's plane x [m], its lower and upper edge at rest [m] and half-length (z) [m], as in the file.
+/// The blade's plane x \[m\], its lower and upper edge at rest \[m\] and half-length (z) \[m\], as in the file.
 const PLANE_X: f64 = 0.016;
 const BLADE_Y: (f64, f64) = (0.06399, 0.12399);
 const BLADE_HALF_Z: f64 = 0.08;
-/// Top of the lower plate [m] (5 cm below the organ's lowest point), as in the file.
+/// Top of the lower plate \[m\] (5 cm below the organ's lowest point), as in the file.
 pub const PLATE_TOP: f64 = -0.08899;
-/// Δx_s of SPEC §9.2's presets [m].
+/// Δx_s of SPEC §9.2's presets \[m\].
 pub const CI_DX: f64 = 0.008;
 pub const DESKTOP_DX: f64 = 0.004;
 
@@ -79,7 +79,7 @@ pub struct ScalpelOutcome {
     pub relaxed_vmax: f64,
     pub relaxed_broken: u64,
     pub relaxed_outside: f64,
-    /// First sample with two components of ≥ 10 % of the (free) solid [s].
+    /// First sample with two components of ≥ 10 % of the (free) solid \[s\].
     pub separation: Option<f64>,
     /// At the end: components of ≥ 10 %, and how many of them hang from the ligaments.
     pub big_components: usize,
@@ -88,20 +88,20 @@ pub struct ScalpelOutcome {
     /// then, and its largest speed at the end [m/s].
     pub free_drop_ratio: f64,
     pub free_vmax_end: f64,
-    /// The same piece's centroid above the plate at t = 0 (the relaxed, uncut organ) [m], and its lowest
+    /// The same piece's centroid above the plate at t = 0 (the relaxed, uncut organ) \[m\], and its lowest
     /// centroid within 1 s of separating over that height: SPEC §9.3 (3) read with "initial height" as
     /// the height before the cut (reported, not judged: the piece parts only once the blade has carried
     /// it down near the plate, so its drop after parting is small; README, `liver_scalpel`).
     pub free_y_t0: f64,
     pub free_drop_ratio_from_t0: f64,
-    /// The hanging piece's centroid shift from t = 0 to the end [m].
+    /// The hanging piece's centroid shift from t = 0 to the end \[m\].
     pub attached_shift: f64,
     /// Largest decrease of the liquid outside the tissue between 0.1-s bins after the cut (particles),
     /// and the liquid outside the tissue on the plate (within 2Δx_l of it) at the end.
     pub outside_largest_drop: f64,
     pub outside_on_plate: usize,
     pub broken_bonds: u64,
-    /// (t, free centroid height above the plate [m]), (t, liquid outside / N^l).
+    /// (t, free centroid height above the plate \[m\]), (t, liquid outside / N^l).
     pub free_height: Vec<(f64, f64)>,
     pub outside_history: Vec<(f64, f64)>,
     pub invariants_failed: usize,

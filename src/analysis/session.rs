@@ -16,7 +16,7 @@
 use serde::Serialize;
 use std::collections::VecDeque;
 
-/// Window of the loss rate [s].
+/// Window of the loss rate \[s\].
 pub const RATE_WINDOW_S: f64 = 1.0;
 /// Loss rate at or below which bleeding counts as stopped [mL/min].
 pub const HEMOSTASIS_ML_MIN: f64 = 1.0;
@@ -24,20 +24,20 @@ pub const HEMOSTASIS_ML_MIN: f64 = 1.0;
 /// The metrics so far (`summary.json`'s `session`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct SessionReport {
-    /// Blood lost by the patient [mL].
+    /// Blood lost by the patient \[mL\].
     pub blood_lost_ml: f64,
     /// Largest loss rate over the rate window [mL/min].
     pub peak_loss_rate_ml_min: f64,
     /// Loss rate at the end [mL/min].
     pub loss_rate_ml_min: f64,
     pub broken_bonds: u64,
-    /// Time of the first broken bond [s].
+    /// Time of the first broken bond \[s\].
     pub first_cut_s: Option<f64>,
     /// The wound bled faster than the hemostasis threshold at some point after the first cut.
     pub bled: bool,
-    /// Time the loss rate fell to the threshold for good [s].
+    /// Time the loss rate fell to the threshold for good \[s\].
     pub hemostasis_s: Option<f64>,
-    /// hemostasis_s − first_cut_s [s].
+    /// hemostasis_s − first_cut_s \[s\].
     pub cut_to_hemostasis_s: Option<f64>,
     pub rate_window_s: f64,
     pub hemostasis_threshold_ml_min: f64,
@@ -69,7 +69,7 @@ impl Default for SessionMetrics {
 }
 
 impl SessionMetrics {
-    /// One sample: time [s], blood lost so far [mL], bonds broken so far. Samples out of time order
+    /// One sample: time \[s\], blood lost so far \[mL\], bonds broken so far. Samples out of time order
     /// (a seek back in a replay) restart the metrics.
     pub fn push(&mut self, t: f64, lost_ml: f64, broken_bonds: u64) {
         if !(t.is_finite() && lost_ml.is_finite()) {

@@ -37,14 +37,14 @@ use std::time::Instant;
 
 /// The shipped scenario (32³ solid, 30³ liquid).
 pub const SYRINGE: &str = include_str!("../../assets/scenarios/syringe.ron");
-/// Cube side L_c [m] (SPEC §7.5's specimen).
+/// Cube side L_c \[m\] (SPEC §7.5's specimen).
 pub const L_C: f64 = 0.05;
-/// Suction [Pa] (SPEC §7.8's disc; here the outlet's gauge pressure in the needle's bore).
+/// Suction \[Pa\] (SPEC §7.8's disc; here the outlet's gauge pressure in the needle's bore).
 pub const SUCTION: f64 = -5000.0;
-/// Radius [m] of the tissue around the needle tip whose blood may take tension (`liquid_tension_in`):
+/// Radius \[m\] of the tissue around the needle tip whose blood may take tension (`liquid_tension_in`):
 /// L_c/5, 6.7 mm clear of the capsule's top face (L_c/3 above the tip).
 pub const TIP_TENSION_RADIUS: f64 = L_C / 5.0;
-/// Depth of the sink above the bore's top [Δx_l] (SPEC §7.8: 2 below the disc).
+/// Depth of the sink above the bore's top \[Δx_l\] (SPEC §7.8: 2 below the disc).
 pub const SINK_DEPTH: f64 = 0.5;
 
 /// SPEC §7.8's syringe for an ns³ solid / nl³ liquid specimen (all lengths in metres, scenario
@@ -262,13 +262,13 @@ pub fn scenario_ron(ns: u32, nl: u32, duration: f64) -> String {
 #[derive(Clone, Debug, Default)]
 pub struct SyringeOutcome {
     pub resolution: String,
-    /// Liquid volume of the specimen (outside the syringe) at t = 0 [m³].
+    /// Liquid volume of the specimen (outside the syringe) at t = 0 \[m³\].
     pub liquid_volume: f64,
-    /// (t, drawn volume [m³]) every 0.05 s.
+    /// (t, drawn volume \[m³\]) every 0.05 s.
     pub drawn: Vec<(f64, f64)>,
-    /// Largest fall of the drawn volume between samples after the settling time [m³].
+    /// Largest fall of the drawn volume between samples after the settling time \[m³\].
     pub drawn_largest_drop: f64,
-    /// Solid particles within 3Δx_s of the tip at t = 0, and their mean displacement toward it [m].
+    /// Solid particles within 3Δx_s of the tip at t = 0, and their mean displacement toward it \[m\].
     pub near_tip: usize,
     pub toward_tip: f64,
     /// Largest liquid fraction outside the tissue, outside the syringe and away from the needle (more

@@ -9,14 +9,14 @@ use glam::Vec3;
 /// volume.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ContactAngle {
-    /// Contact angle θ [degrees] inside the liquid, of the cap with the drop's volume and height.
+    /// Contact angle θ \[degrees\] inside the liquid, of the cap with the drop's volume and height.
     pub degrees: f64,
     /// θ of the cap with the drop's volume over its contact layer (noisier on small drops: the contact
     /// layer gains or loses a particle at a time).
     pub degrees_from_base: f64,
-    /// Height H of the drop's top above the plate surface [m] (top particle + Δx/2).
+    /// Height H of the drop's top above the plate surface \[m\] (top particle + Δx/2).
     pub height: f64,
-    /// Half-width (2-D) or radius (3-D) a of the contact layer [m].
+    /// Half-width (2-D) or radius (3-D) a of the contact layer \[m\].
     pub base_half_width: f64,
     /// Particles in the contact layer (within Δx/2 of the lowest one).
     pub contact_particles: usize,
@@ -98,7 +98,7 @@ pub struct Stain {
     pub area: f64,
     /// Wetted sheet particles.
     pub wetted: usize,
-    /// Horizontal centroid of the wetted particles (x, y; simulation coordinates) [m].
+    /// Horizontal centroid of the wetted particles (x, y; simulation coordinates) \[m\].
     pub centroid: [f64; 2],
 }
 

@@ -35,7 +35,7 @@ pub enum Control {
     Load(Box<Scenario>),
     /// Start recording the live session to this file (`Some`), or finish the recording (`None`).
     Record(Option<std::path::PathBuf>),
-    /// Replay: go to simulated time t [s] (nearest keyframe before it, then stepping).
+    /// Replay: go to simulated time t \[s\] (nearest keyframe before it, then stepping).
     Seek(f64),
     /// Replay: go to step n (the timeline seeks by step: through a relaxation the clock runs from
     /// −duration to 0, so time alone does not place it).
@@ -110,11 +110,11 @@ pub struct SimStatus {
     pub publishes: u64,
     /// The patient's vitals (scenarios with `physiology`), sampled every half second of wall time.
     pub vitals: Option<crate::sim::cardio::Vitals>,
-    /// (t [s], MAP [mmHg], HR [bpm], blood lost [mL]) history for the panel's plot.
+    /// (t \[s\], MAP \[mmHg\], HR \[bpm\], blood lost \[mL\]) history for the panel's plot.
     pub vitals_history: Vec<[f64; 4]>,
     /// Set while replaying a recording.
     pub replay: Option<ReplayStatus>,
-    /// The file being recorded and its size so far [bytes].
+    /// The file being recorded and its size so far \[bytes\].
     pub recording: Option<(String, u64)>,
     /// Scenarios with a patient: the session's metrics so far (blood lost, peak loss rate, first cut,
     /// hemostasis).
@@ -150,7 +150,7 @@ pub fn pace_wall(sim_dt: f64, pace: f64) -> Duration {
 }
 
 /// Steps per batch under a pace: no more than the pace lets the clock advance in one
-/// [`BATCH_TARGET`] at step size `dt` (at least one), nor more than `want`.
+/// `BATCH_TARGET` at step size `dt` (at least one), nor more than `want`.
 pub fn paced_batch(want: u32, dt: f64, pace: f64) -> u32 {
     if !(dt > 0.0 && pace > 0.0) {
         return want;

@@ -15,7 +15,7 @@ use glam::Vec3;
 #[derive(Clone, Debug)]
 pub struct ToolInput {
     pub selected: Option<ToolKind>,
-    /// Height of the working plane above the top of the tissue [m] (scalpel, indenter).
+    /// Height of the working plane above the top of the tissue \[m\] (scalpel, indenter).
     pub height: f32,
     /// The target last sent (simulation coordinates), to avoid flooding the channel.
     last_target: Option<Vec3>,
@@ -36,11 +36,11 @@ pub struct ToolScene<'a> {
     pub objects: &'a [ObjectPose],
     pub origin: [f64; 3],
     pub up: Vec3,
-    /// Top of the tissue along `up` [m] and the domain box.
+    /// Top of the tissue along `up` \[m\] and the domain box.
     pub top: f32,
     pub domain_min: Vec3,
     pub domain_max: Vec3,
-    /// Smallest particle spacing [m].
+    /// Smallest particle spacing \[m\].
     pub dx: f32,
 }
 

@@ -39,7 +39,7 @@ pub enum UiAction {
 #[derive(Clone, Debug, Default)]
 pub struct FrameStats {
     pub fps: f64,
-    /// CPU time to build and submit the last frame [ms].
+    /// CPU time to build and submit the last frame \[ms\].
     pub frame_ms: f64,
     pub size: (u32, u32),
     pub adapter: String,

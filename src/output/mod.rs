@@ -72,12 +72,12 @@ pub struct Summary {
     pub diverged: bool,
     pub divergence: Option<String>,
     pub frames_written: usize,
-    /// Simulated time between frame_*.csv files [s] (`output.frame_interval`; none: only the final state).
+    /// Simulated time between frame_*.csv files \[s\] (`output.frame_interval`; none: only the final state).
     pub frame_interval_s: Option<f64>,
-    /// Simulated time of each frame_NNNNN.csv, in order [s].
+    /// Simulated time of each frame_NNNNN.csv, in order \[s\].
     pub frame_times_s: Vec<f64>,
-    /// With `physiology`: blood lost by the patient [mL] (simulated loss × volume_scale), the simulated
-    /// volume outside the organ [m³], the model's hepatic arterial inflow integrated over the run [m³]
+    /// With `physiology`: blood lost by the patient \[mL\] (simulated loss × volume_scale), the simulated
+    /// volume outside the organ \[m³\], the model's hepatic arterial inflow integrated over the run \[m³\]
     /// and the vitals at the end (also `vitals.csv`, one row per frame).
     pub blood_lost_ml: Option<f64>,
     pub blood_outside_organ_m3: Option<f64>,
@@ -86,10 +86,10 @@ pub struct Summary {
     /// With `physiology`: the session's metrics — blood lost, peak loss rate, bonds broken, first cut,
     /// hemostasis and the time from the first cut to it (`analysis::session`), from the vitals samples.
     pub session: Option<crate::analysis::session::SessionReport>,
-    /// Liquid volume added by the emitters, Σ m/ρ₀ [m³] (0 without emitters).
+    /// Liquid volume added by the emitters, Σ m/ρ₀ \[m³\] (0 without emitters).
     pub emitted_volume_m3: f64,
     /// With a `Hepatic` emitter: the model's hepatic inflow over the run in simulated volume
-    /// (÷ volume_scale) [m³], what `emitted_volume_m3` should match.
+    /// (÷ volume_scale) \[m³\], what `emitted_volume_m3` should match.
     pub hepatic_inflow_sim_m3: Option<f64>,
     /// Emitter and sink totals (particles emitted, sunk, per emitter; backlog; capacity).
     pub emitters: crate::sim::EmitTotals,

@@ -13,10 +13,10 @@
 //! `Points` in world coordinates as Float64 (simulation coordinates are f32 relative to
 //! `Params::origin`, so Float64 keeps `x_sim + origin` exact), and the point data `phase` (UInt8:
 //! 0 liquid, 1 solid), `id` (UInt32), `velocity` [m/s], `density` [kg/m³], `n_s`, `n_l`,
-//! `pressure` [Pa], `broken_bonds` (UInt32: bonds at t = 0 minus intact bonds now, solid only),
-//! `stress` [Pa] (the full solid stress σ = τ − nˢpˢI of thesis eq. (2.49), tension positive, with τ
+//! `pressure` \[Pa\], `broken_bonds` (UInt32: bonds at t = 0 minus intact bonds now, solid only),
+//! `stress` \[Pa\] (the full solid stress σ = τ − nˢpˢI of thesis eq. (2.49), tension positive, with τ
 //! the Mooney–Rivlin stress of `sim::cpu::solid::mooney_rivlin_tau`; row-major 3×3; zero for liquid) and
-//! `von_mises` [Pa] (√(3/2 s:s) of its deviator s), all Float32 unless noted. The field data
+//! `von_mises` \[Pa\] (√(3/2 s:s) of its deviator s), all Float32 unless noted. The field data
 //! `TimeValue` holds the simulated time, so a folder of `.vtu` files opened without the `.pvd` still
 //! animates in time.
 
@@ -37,7 +37,7 @@ pub fn cauchy_stress(def_grad: Mat3, n_s: f32, p: f32, c10: f32, c01: f32) -> Ma
     crate::sim::cpu::solid::mooney_rivlin_tau(def_grad, c10, c01) - Mat3::IDENTITY * (n_s * p)
 }
 
-/// von Mises equivalent stress √(3/2 s:s) of the deviator s = σ − tr(σ)/3 I [Pa].
+/// von Mises equivalent stress √(3/2 s:s) of the deviator s = σ − tr(σ)/3 I \[Pa\].
 pub fn von_mises(sigma: Mat3) -> f32 {
     let dev = sigma - Mat3::IDENTITY * ((sigma.x_axis.x + sigma.y_axis.y + sigma.z_axis.z) / 3.0);
     let ss: f32 = dev.to_cols_array().iter().map(|x| x * x).sum();

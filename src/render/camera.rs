@@ -6,11 +6,11 @@ use glam::{Mat4, Vec3, Vec4};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct OrbitCamera {
-    /// The point orbited (simulation coordinates) [m].
+    /// The point orbited (simulation coordinates) \[m\].
     pub target: Vec3,
-    /// Rotation about +y [rad] (0: looking along −z).
+    /// Rotation about +y \[rad\] (0: looking along −z).
     pub yaw: f32,
-    /// Elevation [rad], positive looks down.
+    /// Elevation \[rad\], positive looks down.
     pub pitch: f32,
     pub distance: f32,
     pub fov_y: f32,

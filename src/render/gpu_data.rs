@@ -12,11 +12,11 @@ pub struct CameraGpu {
     pub proj: [[f32; 4]; 4],
     /// xyz: direction towards the light (view space); w: ambient fraction.
     pub light: [f32; 4],
-    /// width, height, 1/width, 1/height [px].
+    /// width, height, 1/width, 1/height \[px\].
     pub viewport: [f32; 4],
-    /// tissue radius [m], blood radius [m], field mode, field scale.
+    /// tissue radius \[m\], blood radius \[m\], field mode, field scale.
     pub draw: [f32; 4],
-    /// absorption [1/m], filter radius [px], depth falloff [m], refraction strength.
+    /// absorption [1/m], filter radius \[px\], depth falloff \[m\], refraction strength.
     pub fluid: [f32; 4],
     /// rgb background (linear), w: 1 = screen-space fluid, 0 = plain spheres.
     pub background: [f32; 4],
@@ -38,7 +38,7 @@ pub enum FieldMode {
     /// Liver parenchyma, capsule and ligaments in their own colours.
     #[default]
     Plain = 0,
-    /// von Mises equivalent of the deviatoric Cauchy stress [Pa].
+    /// von Mises equivalent of the deviatoric Cauchy stress \[Pa\].
     Stress = 1,
     /// Liquid volume fraction nˡ.
     LiquidFraction = 2,

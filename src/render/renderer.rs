@@ -39,7 +39,7 @@ pub struct RenderSettings {
     pub blood_radius: f32,
     /// Beer–Lambert absorption coefficient [1/m] (scaled per channel in the shader).
     pub absorption: f32,
-    /// Largest bilateral filter radius [px].
+    /// Largest bilateral filter radius \[px\].
     pub filter_radius_px: f32,
     /// Draw the boundary objects that are not tools (walls, plates).
     pub show_walls: bool,
@@ -68,7 +68,7 @@ pub struct Scene<'a> {
     pub objects: &'a [ObjectPose],
     /// Simulation coordinates = scenario coordinates − origin.
     pub origin: [f64; 3],
-    /// Particle spacings Δx of the solid and of the liquid [m].
+    /// Particle spacings Δx of the solid and of the liquid \[m\].
     pub dx_solid: f32,
     pub dx_liquid: f32,
 }

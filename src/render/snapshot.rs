@@ -22,7 +22,7 @@ pub enum SnapshotError {
     Gpu(#[from] crate::sim::gpu::GpuError),
 }
 
-/// Particle spacings (solid, liquid) of a scenario [m], each falling back on the other.
+/// Particle spacings (solid, liquid) of a scenario \[m\], each falling back on the other.
 pub fn spacings(s: &Scenario) -> (f32, f32) {
     let n = &s.numerics;
     let solid = n.dx_solid.or(n.dx_liquid).unwrap_or(1e-3) as f32;

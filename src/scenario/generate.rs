@@ -62,12 +62,12 @@ pub struct GeneratedParticles {
     /// solid in the liquid's nˢ as it continues the liquid in ρˡ (§4.1; README: deviations from SPEC).
     pub boundary_in_tissue: Vec<bool>,
     pub objects: Vec<BoundaryObject>,
-    /// Δx and h of each phase [m] (0 where the phase is absent).
+    /// Δx and h of each phase \[m\] (0 where the phase is absent).
     pub dx_liquid: f64,
     pub dx_solid: f64,
     pub h_liquid: f64,
     pub h_solid: f64,
-    /// Particle mass of each phase [kg] (m = n₀ρ₀/S_W), and its n₀.
+    /// Particle mass of each phase \[kg\] (m = n₀ρ₀/S_W), and its n₀.
     pub mass_liquid: f64,
     pub mass_solid: f64,
     pub fraction_liquid: f64,
@@ -90,7 +90,7 @@ pub struct EmitterSlots {
     pub mass: f64,
     /// Unit inflow direction (z = 0 in 2-D).
     pub direction: V3,
-    /// Depth L of the slot lattice along `direction` (extent of the slots' projections + Δx_l) [m].
+    /// Depth L of the slot lattice along `direction` (extent of the slots' projections + Δx_l) \[m\].
     pub depth: f64,
     pub flow: super::Flow,
 }
@@ -753,7 +753,7 @@ fn tangent_basis(n: V3, d: usize) -> (V3, V3) {
     (t1, cross(n, t1))
 }
 
-/// Displacement [m] and velocity [m/s] of a boundary object at time t (SPEC §4.1).
+/// Displacement \[m\] and velocity [m/s] of a boundary object at time t (SPEC §4.1).
 /// Before t = 0 (relaxation) every object rests at its initial pose.
 pub fn motion_at(m: &Motion, t: f64) -> (V3, V3) {
     if t < 0.0 {

@@ -56,7 +56,7 @@ pub struct Scenario {
     /// and plain liquid generators (`Box`, `Sphere`) fill it again (the needle's wall, a primed bore).
     #[serde(default)]
     pub cavities: Vec<Region>,
-    /// Simulated time [s] of a run (after relaxation).
+    /// Simulated time \[s\] of a run (after relaxation).
     pub duration: f64,
     /// Optional damped relaxation before t = 0 (SPEC §7.5).
     #[serde(default)]
@@ -100,9 +100,9 @@ impl Scenario {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Domain {
-    /// Lower corner [m].
+    /// Lower corner \[m\].
     pub min: V3,
-    /// Upper corner [m].
+    /// Upper corner \[m\].
     pub max: V3,
     /// Periodic axes (x, y, z): particles leaving one side re-enter on the other (SPEC §4.3).
     #[serde(default)]
@@ -117,7 +117,7 @@ pub struct Liquid {
     pub density: f64,
     /// Dynamic viscosity η [Pa·s] (2.50).
     pub viscosity: f64,
-    /// Penalty stiffness k_sat of (2.53) [Pa]; give this or `sound_speed`, not both.
+    /// Penalty stiffness k_sat of (2.53) \[Pa\]; give this or `sound_speed`, not both.
     #[serde(default)]
     pub stiffness: Option<f64>,
     /// Numerical sound speed c_l [m/s]; stiffness = ρ₀c² (SPEC D-5).
@@ -157,7 +157,7 @@ impl Equilibrium {
     }
 }
 
-/// Strengths [N] of the pairwise surface-tension force (3.3), s_ij cos(πr/(2R_l)) toward the neighbour.
+/// Strengths \[N\] of the pairwise surface-tension force (3.3), s_ij cos(πr/(2R_l)) toward the neighbour.
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Cohesion {
@@ -174,15 +174,15 @@ pub struct Cohesion {
 pub struct Solid {
     /// Intrinsic density ρ₀ˢ [kg/m³].
     pub density: f64,
-    /// Mooney–Rivlin C10 [Pa] (2.14).
+    /// Mooney–Rivlin C10 \[Pa\] (2.14).
     pub c10: f64,
-    /// Mooney–Rivlin C01 [Pa] (2.14).
+    /// Mooney–Rivlin C01 \[Pa\] (2.14).
     pub c01: f64,
-    /// Structural stiffness k_s of (2.52) [Pa].
+    /// Structural stiffness k_s of (2.52) \[Pa\].
     pub k_s: f64,
     /// Solid volume fraction at perfused equilibrium nˢ_sat of (2.52).
     pub n_sat: f64,
-    /// Saturation stiffness k_sat of (2.52) [Pa].
+    /// Saturation stiffness k_sat of (2.52) \[Pa\].
     pub k_sat: f64,
     /// Interphase friction coefficient K̄ [Pa·s/m²], K = (1 − nˢ)K̄ (2.17).
     #[serde(default)]
@@ -197,19 +197,19 @@ pub struct Solid {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Numerics {
-    /// Lattice spacing of liquid particles Δx_l [m]; required when liquid is generated.
+    /// Lattice spacing of liquid particles Δx_l \[m\]; required when liquid is generated.
     #[serde(default)]
     pub dx_liquid: Option<f64>,
-    /// Lattice spacing of solid particles Δx_s [m]; required when solid is generated.
+    /// Lattice spacing of solid particles Δx_s \[m\]; required when solid is generated.
     #[serde(default)]
     pub dx_solid: Option<f64>,
     /// h/Δx, 1 ≤ h/Δx ≤ 2 (thesis §2.2.4); default 1.3.
     #[serde(default = "d_h_over_dx")]
     pub h_over_dx: f64,
-    /// Explicit smoothing length of the liquid [m] (overrides h_over_dx·Δx_l).
+    /// Explicit smoothing length of the liquid \[m\] (overrides h_over_dx·Δx_l).
     #[serde(default)]
     pub h_liquid: Option<f64>,
-    /// Explicit smoothing length of the solid [m] (overrides h_over_dx·Δx_s).
+    /// Explicit smoothing length of the solid \[m\] (overrides h_over_dx·Δx_s).
     #[serde(default)]
     pub h_solid: Option<f64>,
     /// Artificial viscosity (2.54)–(2.58).
@@ -224,13 +224,13 @@ pub struct Numerics {
     /// Time-step factors of (2.70) and the friction bound (SPEC §5.3).
     #[serde(default)]
     pub cfl: Cfl,
-    /// Smallest acceptable time step [s]: a run whose bound falls below it is reported as diverged.
+    /// Smallest acceptable time step \[s\]: a run whose bound falls below it is reported as diverged.
     #[serde(default = "d_dt_min")]
     pub dt_min: f64,
-    /// Largest time step [s].
+    /// Largest time step \[s\].
     #[serde(default = "d_dt_max")]
     pub dt_max: f64,
-    /// Fixed time step [s]; must not exceed the computed bound by more than 5 % (SPEC §5.3).
+    /// Fixed time step \[s\]; must not exceed the computed bound by more than 5 % (SPEC §5.3).
     #[serde(default)]
     pub fixed_dt: Option<f64>,
     /// Multiply the viscous term by κ_V (SPEC §2.5, D-7).
@@ -264,7 +264,7 @@ pub struct Numerics {
     /// clamped. With regions and without `liquid_tension_below_ns`, tension acts only in the regions.
     #[serde(default)]
     pub liquid_tension_in: Vec<Region>,
-    /// Ambient pressure p_a [Pa] (not in the thesis; README: deviations from SPEC): the liquid's pressure
+    /// Ambient pressure p_a \[Pa\] (not in the thesis; README: deviations from SPEC): the liquid's pressure
     /// is p_a + (2.53) (still clamped at 0 without `liquid_tension`), so that a suction of up to p_a
     /// below ambient (an `outlets` buffer) is a lower pressure, not a tension that parts an SPH column.
     /// The capsule feels the blood's pressure less p_a (the ambient pressure outside it balances it).
@@ -439,7 +439,7 @@ pub enum Generator {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub enum Motion {
     Static,
-    /// Constant velocity [m/s] between `start` and `stop` [s]; at rest outside.
+    /// Constant velocity [m/s] between `start` and `stop` \[s\]; at rest outside.
     Translate {
         velocity: V3,
         #[serde(default)]
@@ -461,7 +461,7 @@ pub enum Motion {
 pub enum PressureMode {
     /// ρ_b := ρ_i, p_b := max(p_i, 0): purely repulsive.
     Mirror,
-    /// Constant ρ_b [kg/m³] and p_b [Pa] (syringe suction).
+    /// Constant ρ_b [kg/m³] and p_b \[Pa\] (syringe suction).
     Prescribed { density: f64, pressure: f64 },
 }
 
@@ -479,7 +479,7 @@ pub struct Boundary {
     pub name: String,
     /// Filled with a cell-centred lattice; make it at least R thick (3 layers at R = 2.6Δx).
     pub shape: Region,
-    /// Lattice spacing Δx_b [m]; default Δx of the solid if there is one, else of the liquid.
+    /// Lattice spacing Δx_b \[m\]; default Δx of the solid if there is one, else of the liquid.
     #[serde(default)]
     pub spacing: Option<f64>,
     #[serde(default = "d_static")]
@@ -510,12 +510,12 @@ pub struct Boundary {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Mould {
-    /// Gap left between the bed and the nearest solid particle [m]: about Δx_s, so that the bed's top
+    /// Gap left between the bed and the nearest solid particle \[m\]: about Δx_s, so that the bed's top
     /// layer sits where the tissue's next lattice layer would. Closer, the bed's virtual particles
     /// crowd the tissue's lowest layer and their pressure lifts it (measured on `liver.ron`: at Δx_s/2
     /// the tissue pinned by the ligaments above was squeezed to J ≈ 0.81 and its bonds tore).
     pub clearance: f64,
-    /// Thickness of the bed beneath the tissue's lower face [m]; at least the support radius R so
+    /// Thickness of the bed beneath the tissue's lower face \[m\]; at least the support radius R so
     /// that tissue at its surface sees a full kernel of boundary particles.
     pub depth: f64,
 }
@@ -587,8 +587,8 @@ pub struct Emitter {
 pub enum Flow {
     /// Constant flow [m³/s].
     Constant(f64),
-    /// Piecewise-linear in time: `rates[k]` [m³/s] at `times[k]` [s] (increasing; held constant
-    /// outside), repeating with `period` [s] when given (e.g. one cardiac cycle).
+    /// Piecewise-linear in time: `rates[k]` [m³/s] at `times[k]` \[s\] (increasing; held constant
+    /// outside), repeating with `period` \[s\] when given (e.g. one cardiac cycle).
     Table {
         times: Vec<f64>,
         rates: Vec<f64>,
@@ -622,7 +622,7 @@ pub struct Outlet {
     pub name: String,
     /// The buffer: a `Box` a few Δx_l deep, across the whole channel.
     pub region: Region,
-    /// Gauge pressure [Pa] in the buffer (−5000: a syringe's suction).
+    /// Gauge pressure \[Pa\] in the buffer (−5000: a syringe's suction).
     pub pressure: f64,
     /// Direction in which liquid leaves through the buffer, toward its sink (normalised; e.g. (0, 0, 1)).
     pub normal: V3,
@@ -661,7 +661,7 @@ pub struct Membrane {
     pub count: u32,
     /// r_e / Δx_s (default 0.5).
     pub radius: f64,
-    /// θ₀ [rad] of the first child (default π/4).
+    /// θ₀ \[rad\] of the first child (default π/4).
     pub angle: f64,
     /// Capsule stiffness: the membrane particles' C10 and C01 over the tissue's (default 1, the
     /// thesis's membrane of plain solid particles, §3.1.3). Glisson's capsule is a collagenous sheet far
@@ -689,7 +689,7 @@ impl Default for Membrane {
 pub struct Ligaments {
     /// Attachment regions (the solid particles inside are tethered).
     pub regions: Vec<Region>,
-    /// Natural frequency f [Hz] of one tethered particle on its spring alone.
+    /// Natural frequency f \[Hz\] of one tethered particle on its spring alone.
     pub frequency: f64,
     /// Damping ratio ζ of the springs (1: critical; 0: undamped).
     #[serde(default = "default_ligament_damping")]
@@ -703,7 +703,7 @@ fn default_ligament_damping() -> f64 {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Relaxation {
-    /// Relaxation time [s] before t = 0.
+    /// Relaxation time \[s\] before t = 0.
     pub duration: f64,
     /// Velocity damping ζ [1/s]: v ← v(1 − ζΔt).
     pub damping: f64,
@@ -779,7 +779,7 @@ pub struct Probe {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq, Default)]
 #[serde(deny_unknown_fields)]
 pub struct Output {
-    /// Simulated time between CSV frames [s]; none: only the final frame.
+    /// Simulated time between CSV frames \[s\]; none: only the final frame.
     #[serde(default)]
     pub frame_interval: Option<f64>,
     /// Probes sampled every frame (and at least 200 times per run) into `probes.csv`.

@@ -36,9 +36,9 @@ impl Dim {
 /// exactly the same values.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Kernel {
-    /// Smoothing length h [m] of the cubic spline.
+    /// Smoothing length h \[m\] of the cubic spline.
     pub h: f32,
-    /// Support radius R = 2h [m] of poly6, spiky and viscosity kernels.
+    /// Support radius R = 2h \[m\] of poly6, spiky and viscosity kernels.
     pub r: f32,
     /// Cubic spline normalisation α_C (2.30): 10/(7πh²) in 2-D, 1/(πh³) in 3-D.
     pub alpha_c: f32,

@@ -61,9 +61,9 @@ pub struct StepInfo {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Advance {
     pub steps: u64,
-    /// Clock after the last step [s].
+    /// Clock after the last step \[s\].
     pub t: f64,
-    /// Smallest and largest Δt of the batch [s] (0 when no step was taken).
+    /// Smallest and largest Δt of the batch \[s\] (0 when no step was taken).
     pub dt_min: f64,
     pub dt_max: f64,
     /// Steps limited by each criterion, in [`DtLimit::ALL`] order.
@@ -81,7 +81,7 @@ pub enum Command {
     SetGravity(V3),
     /// Velocity damping ζ [1/s] (relaxation), and whether gravity acts on the solid only.
     SetDamping { damping: f64, gravity_solid_only: bool },
-    /// Set the simulation clock [s] (boundary motions are evaluated at max(t, 0)).
+    /// Set the simulation clock \[s\] (boundary motions are evaluated at max(t, 0)).
     SetTime(f64),
     /// The suction's valve: `true` (the start state) lets boundaries with a `Prescribed` pressure
     /// show it (SPEC §4.1), outlets prescribe their pressure and sinks remove the liquid in them;
@@ -90,14 +90,14 @@ pub enum Command {
     /// `hold_suction`).
     SetSuction(bool),
     /// Teleport object `object` so that its centre (box centre, sphere centre) is at `position`
-    /// (scenario coordinates [m]) and hold it there (parking a tool, loading a projectile).
+    /// (scenario coordinates \[m\]) and hold it there (parking a tool, loading a projectile).
     PlaceObject { object: usize, position: V3 },
-    /// Move object `object` in a straight line towards `target` (its centre, scenario coordinates [m])
+    /// Move object `object` in a straight line towards `target` (its centre, scenario coordinates \[m\])
     /// at `speed` [m/s], stopping there: a `Translate` motion from the current pose, so a tool driven
     /// by the mouse is a kinematic body with a bounded, known velocity (SPEC §4.1).
     MoveObject { object: usize, target: V3, speed: f64 },
     /// Replace the flow of emitter `emitter` by the piecewise-linear table `rates` [m³/s] at `times`
-    /// [s] (increasing, held outside): how the patient model drives the hepatic inlet. Recorded like
+    /// \[s\] (increasing, held outside): how the patient model drives the hepatic inlet. Recorded like
     /// every command, so a replay needs no cardiovascular model.
     SetInflow { emitter: usize, times: Vec<f64>, rates: Vec<f64> },
 }
@@ -135,7 +135,7 @@ pub struct ObjectPose {
     pub name: String,
     /// The object's shape at its current position.
     pub shape: crate::scenario::Region,
-    /// Centre of the shape (box centre or sphere centre) [m].
+    /// Centre of the shape (box centre or sphere centre) \[m\].
     pub centre: V3,
     pub velocity: V3,
     pub tool: Option<crate::scenario::Tool>,
@@ -251,9 +251,9 @@ pub struct EmitTotals {
     pub sunk: u64,
     /// Particles added by each emitter.
     pub per_emitter: Vec<u64>,
-    /// Σ m/ρ₀ of the particles added [m³].
+    /// Σ m/ρ₀ of the particles added \[m³\].
     pub emitted_volume_m3: f64,
-    /// Volume owed by the flows and not yet placed (no free slot) [m³].
+    /// Volume owed by the flows and not yet placed (no free slot) \[m³\].
     pub backlog_m3: f64,
     pub live_liquid: u64,
     pub capacity: u64,
@@ -274,7 +274,7 @@ pub struct Simulation {
     engine: Engine,
     scenario: Scenario,
     stats: RunStats,
-    /// Wall time of GPU batches [s] (whole-step timing without timestamp queries).
+    /// Wall time of GPU batches \[s\] (whole-step timing without timestamp queries).
     gpu_wall_s: f64,
 }
 
@@ -581,7 +581,7 @@ impl Simulation {
         }
     }
 
-    /// Accumulated wall time per pass family (GPU: or entry point) [s], sorted by name.
+    /// Accumulated wall time per pass family (GPU: or entry point) \[s\], sorted by name.
     pub fn pass_times(&self) -> Vec<(String, f64)> {
         match &self.engine {
             Engine::Cpu(c) => c.timers.totals.iter().map(|(k, v)| (k.to_string(), v.as_secs_f64())).collect(),
@@ -599,7 +599,7 @@ impl Simulation {
         }
     }
 
-    /// Device or host memory used by particle storage [bytes].
+    /// Device or host memory used by particle storage \[bytes\].
     pub fn memory_bytes(&self) -> usize {
         match &self.engine {
             Engine::Cpu(c) => c.memory_bytes(),

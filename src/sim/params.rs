@@ -17,19 +17,19 @@ pub struct Params {
     /// Cross-phase kernel, R_× = max(R_s, R_l) (SPEC §2.1, D-3).
     pub k_cross: Kernel,
     pub dx_solid: f32,
-    /// Liquid lattice spacing Δx_l [m] (emitter slots, 0 without liquid).
+    /// Liquid lattice spacing Δx_l \[m\] (emitter slots, 0 without liquid).
     pub dx_liquid: f32,
     /// W_C(Δx_s; h_s), denominator of f_ij (2.60).
     pub wc_dx: f32,
     pub rho0_l: f32,
     pub rho0_s: f32,
     pub eta: f32,
-    /// Liquid penalty stiffness of (2.53) [Pa].
+    /// Liquid penalty stiffness of (2.53) \[Pa\].
     pub k_l: f32,
     pub c1: f32,
     /// Liquid–void attraction γ [N/m] of (3.4) (0: off).
     pub wicking: f32,
-    /// Pairwise surface-tension strengths [N] of (3.3): liquid–liquid s_ll and liquid–boundary s_lb.
+    /// Pairwise surface-tension strengths \[N\] of (3.3): liquid–liquid s_ll and liquid–boundary s_lb.
     pub cohesion_ll: f32,
     pub cohesion_lb: f32,
     /// Where the liquid pressure may go negative: nˢ below this (`numerics.liquid_tension` and
@@ -40,7 +40,7 @@ pub struct Params {
     /// Where else the liquid pressure may go negative, whatever nˢ (`numerics.liquid_tension_in`, in
     /// simulation coordinates; empty without `liquid_tension`).
     pub liquid_tension_in: Vec<TensionRegion>,
-    /// Ambient pressure p_a [Pa] added to the liquid's (2.53) (`numerics.ambient_pressure`; 0: none).
+    /// Ambient pressure p_a \[Pa\] added to the liquid's (2.53) (`numerics.ambient_pressure`; 0: none).
     pub ambient_pressure: f32,
     /// Pressure outlets (`outlets`) in simulation coordinates, pressures absolute (p_a + gauge).
     pub outlets: Vec<OutletRegion>,

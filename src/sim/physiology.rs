@@ -17,18 +17,18 @@ use super::{Command, State};
 use crate::scenario::Physiology;
 use std::collections::VecDeque;
 
-/// Sampling interval of the hepatic inflow table [s] (the pulse's upstroke lasts ~50 ms).
+/// Sampling interval of the hepatic inflow table \[s\] (the pulse's upstroke lasts ~50 ms).
 pub const INFLOW_SAMPLE_S: f64 = 1e-3;
-/// How far ahead of the organ the model runs when a new table is made [s].
+/// How far ahead of the organ the model runs when a new table is made \[s\].
 pub const INFLOW_HORIZON_S: f64 = 0.25;
 
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Patient {
     pub model: CardioModel,
     volume_scale: f64,
-    /// Largest simulated volume of blood outside the organ seen so far [m³].
+    /// Largest simulated volume of blood outside the organ seen so far \[m³\].
     lost_sim_m3: f64,
-    /// Recent samples (t [s], hepatic flow [m³/s], its integral since t = 0 [m³]) of the model run ahead.
+    /// Recent samples (t \[s\], hepatic flow [m³/s], its integral since t = 0 \[m³\]) of the model run ahead.
     samples: VecDeque<(f64, f64, f64)>,
 }
 
@@ -69,13 +69,13 @@ impl Patient {
         Command::SetInflow { emitter, times, rates }
     }
 
-    /// How far the inflow tables reach [s].
+    /// How far the inflow tables reach \[s\].
     pub fn inflow_until(&self) -> f64 {
         self.samples.back().map_or(f64::NEG_INFINITY, |s| s.0)
     }
 
     /// The model's hepatic inflow integrated from 0 to `t`, in simulated volume (÷ `volume_scale`)
-    /// [m³]: linear between the kept samples (exact at sample times); `None` outside them.
+    /// \[m³\]: linear between the kept samples (exact at sample times); `None` outside them.
     pub fn hepatic_inflow_sim_m3(&self, t: f64) -> Option<f64> {
         let k = self.samples.iter().position(|s| s.0 >= t)?;
         let (t1, _, v1) = self.samples[k];
@@ -93,7 +93,7 @@ impl Patient {
         self.samples.push_back((m.time(), m.hepatic_flow_m3_s(), m.hepatic_volume_m3()));
     }
 
-    /// Simulated volume of the liquid outside the solid body: Σ m/ρ₀ over those particles [m³].
+    /// Simulated volume of the liquid outside the solid body: Σ m/ρ₀ over those particles \[m³\].
     pub fn outside_volume_m3(state: &State, rho0_liquid: f64) -> f64 {
         let s = &state.liquid;
         (0..s.len())
@@ -116,7 +116,7 @@ impl Patient {
         self.model.vitals()
     }
 
-    /// Simulated blood outside the organ so far [m³].
+    /// Simulated blood outside the organ so far \[m³\].
     pub fn lost_simulated_m3(&self) -> f64 {
         self.lost_sim_m3
     }

@@ -13,7 +13,7 @@ pub struct PhaseState {
     pub rho: Vec<f32>,
     pub n_s: Vec<f32>,
     pub n_l: Vec<f32>,
-    /// Isotropic penalty pressure [Pa].
+    /// Isotropic penalty pressure \[Pa\].
     pub p: Vec<f32>,
     pub mass: Vec<f32>,
 }

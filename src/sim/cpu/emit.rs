@@ -99,10 +99,10 @@ pub struct Emitter {
     /// Buffer velocity u(tⁿ⁺¹) of the current step [m/s].
     pub velocity: Vec3,
     pub mass: f32,
-    /// Volume m/ρ₀ each particle carries [m³].
+    /// Volume m/ρ₀ each particle carries \[m³\].
     pub volume: f32,
     pub flow: FlowTable,
-    /// Volume owed to the flow and not yet placed [m³].
+    /// Volume owed to the flow and not yet placed \[m³\].
     pub acc: f32,
     /// Next slot of the round robin.
     pub cursor: u32,

@@ -380,7 +380,7 @@ pub fn wicking_pair(gamma: f32, h_x: f32, ns_j: f32, nl_j: f32, r: f32) -> f32 {
     w * (gamma / (h_x * h_x)) * (std::f32::consts::PI * r / (4.0 * h_x)).cos()
 }
 
-/// Pair force [N] of the Tartakovsky–Meakin surface tension (3.3), SPEC §3.12: s cos(πr/(2R)), toward
+/// Pair force \[N\] of the Tartakovsky–Meakin surface tension (3.3), SPEC §3.12: s cos(πr/(2R)), toward
 /// the neighbour (D-22). Zero beyond R and for coincident particles.
 #[inline]
 pub fn cohesion_pair(s: f32, radius: f32, r: f32) -> f32 {

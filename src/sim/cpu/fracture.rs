@@ -23,7 +23,7 @@ pub fn blade_axis(o: &BoundaryObject, dims: usize) -> Option<usize> {
     (0..dims).min_by(|&a, &b| (max[a] - min[a]).total_cmp(&(max[b] - min[b])))
 }
 
-/// A blade at its current pose: the plane x[axis] = (a + b)[axis]/2, bounded by [a, b] grown by
+/// A blade at its current pose: the plane x\[axis\] = (a + b)\[axis\]/2, bounded by [a, b] grown by
 /// `reach` on the other axes.
 ///
 /// The reach is the support radius R_s of the blade's virtual particles: the tissue feels the blade

@@ -42,7 +42,7 @@ pub struct LiquidSet {
     pub rho: Vec<f32>,
     pub n_l: Vec<f32>,
     pub n_s: Vec<f32>,
-    /// Penalty pressure (2.53) [Pa].
+    /// Penalty pressure (2.53) \[Pa\].
     pub p: Vec<f32>,
     /// Acceleration of the current evaluation [m/s²].
     pub a: Vec<Vec3>,
@@ -94,10 +94,10 @@ pub struct SolidSet {
     pub drho0: Vec<f32>,
     pub n_s: Vec<f32>,
     pub n_l: Vec<f32>,
-    /// Isotropic penalty pressure (2.52) [Pa].
+    /// Isotropic penalty pressure (2.52) \[Pa\].
     pub p: Vec<f32>,
     pub def_grad: Vec<Mat3>,
-    /// Deviatoric Cauchy stress τ [Pa].
+    /// Deviatoric Cauchy stress τ \[Pa\].
     pub tau: Vec<Mat3>,
     /// Artificial stress R (2.59) [Pa·m⁶/kg²].
     pub art: Vec<Mat3>,

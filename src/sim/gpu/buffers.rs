@@ -64,7 +64,7 @@ fn usage(slot: Slot) -> wgpu::BufferUsages {
     }
 }
 
-/// Creates a buffer of `slot` holding `data` (padded to at least [`MIN_BYTES`]).
+/// Creates a buffer of `slot` holding `data` (padded to at least `MIN_BYTES`).
 pub fn create_init(device: &wgpu::Device, slot: Slot, data: &[u8]) -> wgpu::Buffer {
     let label = format!("perfuse.{}", slot.name());
     if (data.len() as u64) < MIN_BYTES {
@@ -122,7 +122,7 @@ impl SimBuffers {
         SimBuffers { by_slot, grid_set, backups }
     }
 
-    /// Device memory held by the simulation buffers (backups included) [bytes].
+    /// Device memory held by the simulation buffers (backups included) \[bytes\].
     pub fn memory_bytes(&self) -> u64 {
         let live: u64 = self.by_slot.iter().flatten().map(|b| b.size()).sum();
         let backups: u64 = self.backups.iter().map(|(_, b)| b.size()).sum();

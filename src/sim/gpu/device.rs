@@ -107,7 +107,7 @@ fn preference(info: &wgpu::AdapterInfo) -> u32 {
     }
 }
 
-/// Picks the adapter: `wanted` (substring of the name) if given, else the best by [`preference`].
+/// Picks the adapter: `wanted` (substring of the name) if given, else the best by `preference`.
 /// With `prefer_software` the Vulkan CPU adapter wins (tests: reproducible on every machine).
 pub fn select_adapter(
     instance: &wgpu::Instance,

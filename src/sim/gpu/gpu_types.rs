@@ -102,7 +102,7 @@ pub struct SimParams {
     pub kappa_s: f32,
     /// γ of (3.4) [N/m]; 0: off.
     pub wicking: f32,
-    /// s_ll, s_lb of (3.3) [N]; 0: off.
+    /// s_ll, s_lb of (3.3) \[N\]; 0: off.
     pub cohesion_ll: f32,
     pub cohesion_lb: f32,
     /// Upper bound of Δt (`Params::dt_upper`): the stick relaxation time of wall friction.

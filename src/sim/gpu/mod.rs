@@ -81,7 +81,7 @@ pub struct GpuSolver {
     wg_template: [u32; 8],
     timer: Option<PassTimer>,
     batches: u64,
-    /// Host time spent pushing and popping the per-batch error scopes [s] (`error_scope_cost`).
+    /// Host time spent pushing and popping the per-batch error scopes \[s\] (`error_scope_cost`).
     scope_host_s: f64,
     /// Whether the liquid's ρ, nˡ, nˢ and p and the solid's nˡ on the device are those of the current
     /// positions: true after a batch (its last step's evaluation 1 summed them, and the corrector and
@@ -206,7 +206,7 @@ pub struct BatchTotals {
     /// Steps limited by each criterion, in `DtLimit::ALL` order.
     pub limited_by: [u64; 6],
     pub broken_bonds: u64,
-    /// Wall time spent in batches [s] (whole-step timing without timestamp queries).
+    /// Wall time spent in batches \[s\] (whole-step timing without timestamp queries).
     pub wall_s: f64,
 }
 
@@ -500,12 +500,12 @@ impl GpuSolver {
         out.push((Slot::LiquidId, bytes(&cpu.st.liquid.id)));
     }
 
-    /// Simulation clock [s].
+    /// Simulation clock \[s\].
     pub fn time(&self) -> f64 {
         self.t
     }
 
-    /// Device memory used by particle storage, grids and the last-good backups [bytes].
+    /// Device memory used by particle storage, grids and the last-good backups \[bytes\].
     pub fn memory_bytes(&self) -> usize {
         self.buffers.memory_bytes() as usize
     }
@@ -1040,8 +1040,8 @@ impl GpuSolver {
         }
     }
 
-    /// Accumulated GPU time per pass family (or entry point, [`Self::time_entry_points`]) [s]
-    /// (timestamp queries on every [`TIMED_EVERY`]th batch, scaled to all steps taken), or `None`
+    /// Accumulated GPU time per pass family (or entry point, [`Self::time_entry_points`]) \[s\]
+    /// (timestamp queries on every `TIMED_EVERY`th batch, scaled to all steps taken), or `None`
     /// without timestamp queries.
     pub fn pass_times(&self) -> Option<Vec<(String, f64)>> {
         let timer = self.timer.as_ref()?;
