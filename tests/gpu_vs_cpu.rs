@@ -492,6 +492,26 @@ fn one_step_matches_cpu() {
     });
 }
 
+/// The perfused block with its liquid moving at random velocities (up to 0.1 m/s per axis, from `seed`)
+/// and put in reversed storage order, then binned (`build_grids` renumbers it by cell when
+/// `reorder_liquid`).
+fn stirred_reversed_block(seed: u64, reorder_liquid: bool) -> CpuSolver {
+    let mut cpu = cpu_solver();
+    cpu.params.reorder_liquid = reorder_liquid;
+    let mut seed = seed;
+    let mut rnd = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((seed >> 33) as f32 / (1u64 << 31) as f32) - 0.5
+    };
+    for v in cpu.st.liquid.v.iter_mut() {
+        *v = Vec3::new(rnd(), rnd(), rnd()) * 0.2;
+    }
+    let reversed: Vec<u32> = (0..cpu.st.liquid.x.len() as u32).rev().collect();
+    cpu.st.liquid.gather(&reversed);
+    cpu.build_grids();
+    cpu
+}
+
 /// grid_reorder_gather/apply ↔ grid::grid_reorder: a block whose liquid starts in reversed storage
 /// order, moving at random velocities, is renumbered into its cell order by both back-ends the same
 /// way (the GPU's id buffer equals the CPU's storage order of ids after every batch of 5 steps), and
@@ -499,18 +519,7 @@ fn one_step_matches_cpu() {
 #[test]
 fn liquid_renumbering_matches_cpu() {
     gpu_test("liquid_renumbering_matches_cpu", |ctx| {
-        let mut cpu = cpu_solver();
-        let mut seed = 4242u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((seed >> 33) as f32 / (1u64 << 31) as f32) - 0.5
-        };
-        for v in cpu.st.liquid.v.iter_mut() {
-            *v = Vec3::new(rnd(), rnd(), rnd()) * 0.2;
-        }
-        let reversed: Vec<u32> = (0..cpu.st.liquid.x.len() as u32).rev().collect();
-        cpu.st.liquid.gather(&reversed);
-        cpu.build_grids();
+        let mut cpu = stirred_reversed_block(4242, true);
         let mut gpu = gpu_from(ctx, &cpu);
         let h = cpu.params.k_liquid.h;
         let nl = cpu.st.liquid.x.len();
@@ -534,19 +543,7 @@ fn liquid_renumbering_matches_cpu() {
 #[test]
 fn liquid_walks_without_the_renumbering_match_cpu() {
     gpu_test("liquid_walks_without_the_renumbering_match_cpu", |ctx| {
-        let mut cpu = cpu_solver();
-        cpu.params.reorder_liquid = false;
-        let mut seed = 1717u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((seed >> 33) as f32 / (1u64 << 31) as f32) - 0.5
-        };
-        for v in cpu.st.liquid.v.iter_mut() {
-            *v = Vec3::new(rnd(), rnd(), rnd()) * 0.2;
-        }
-        let reversed: Vec<u32> = (0..cpu.st.liquid.x.len() as u32).rev().collect();
-        cpu.st.liquid.gather(&reversed);
-        cpu.build_grids();
+        let mut cpu = stirred_reversed_block(1717, false);
         let stored = cpu.st.liquid.id.clone();
         let mut gpu = gpu_from(ctx, &cpu);
         let h = cpu.params.k_liquid.h;
