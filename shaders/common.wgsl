@@ -977,6 +977,18 @@ fn nbr_step(c: vec3<i32>) -> u32 {
 // own cell as in nbr_cell. Either way the particles come in nbr_cell's canonical order.
 fn nbr_span(c: vec3<i32>, k: u32) -> vec2<i32> {
     let nx = i32(params.grid_n.x);
+    // No periodic axis (the usual scene): the row's cells straight from its (y, z), without nbr_cell's
+    // per-axis wrap and the vector of offsets; the same span as the general path below.
+    if (all(params.period.xyz <= vec3<f32>(0.0))) {
+        let y = c.y + i32((k / NBR_SIDE) % NBR_SIDE) - GRID_REACH;
+        let z = c.z + i32(k / (NBR_SIDE * NBR_SIDE)) - GRID_REACH;
+        let ny = i32(params.grid_n.y);
+        if (y < 0 || y >= ny || z < 0 || z >= i32(params.grid_n.z)) {
+            return vec2<i32>(-1, -1);
+        }
+        let row = nx * (y + ny * z);
+        return vec2<i32>(row + max(c.x - GRID_REACH, 0), row + min(c.x + GRID_REACH, nx - 1));
+    }
     if (nbr_wraps(c)) {
         let one = nbr_cell(c, k);
         return vec2<i32>(one, one);
