@@ -126,17 +126,27 @@ fn struct_layouts_match_wgsl() {
 /// The WGSL flag bit of a boundary particle that stands in the tissue's place is the Rust one.
 #[test]
 fn boundary_in_tissue_bit_matches_rust() {
-    let module = validate("density").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(u32_constant("density", "BOUNDARY_IN_TISSUE"), perfuse::sim::gpu::gpu_types::BOUNDARY_IN_TISSUE);
+}
+
+/// The cells per invocation of the scan's block passes: grid.wgsl's SCAN_CHUNK sizes the work each
+/// invocation does, passes.rs's sizes the dispatch; if they disagree the scan misses cells or repeats them.
+#[test]
+fn scan_chunk_matches_rust() {
+    assert_eq!(u32_constant("grid", "SCAN_CHUNK"), perfuse::sim::gpu::passes::SCAN_CHUNK);
+}
+
+/// The value of the u32 constant `name` of shader family `family` (a literal in the WGSL).
+fn u32_constant(family: &str, name: &str) -> u32 {
+    let module = validate(family).unwrap_or_else(|e| panic!("{e}"));
     let c = module
         .constants
         .iter()
-        .find(|(_, c)| c.name.as_deref() == Some("BOUNDARY_IN_TISSUE"))
+        .find(|(_, c)| c.name.as_deref() == Some(name))
         .map(|(_, c)| c.init)
-        .expect("BOUNDARY_IN_TISSUE in density.wgsl");
+        .unwrap_or_else(|| panic!("{name} in {family}.wgsl"));
     match module.global_expressions[c] {
-        naga::Expression::Literal(naga::Literal::U32(v)) => {
-            assert_eq!(v, perfuse::sim::gpu::gpu_types::BOUNDARY_IN_TISSUE)
-        }
-        ref e => panic!("BOUNDARY_IN_TISSUE is {e:?}, not a u32 literal"),
+        naga::Expression::Literal(naga::Literal::U32(v)) => v,
+        ref e => panic!("{name} is {e:?}, not a u32 literal"),
     }
 }

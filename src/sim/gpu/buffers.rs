@@ -101,7 +101,7 @@ impl SimBuffers {
             Some(create_init(device, Slot::GridCellOf, &vec![0u8; 4 * max_set]));
         by_slot[Slot::GridCursor.binding() as usize] =
             Some(create_init(device, Slot::GridCursor, &vec![0u8; 4 * (cells + 1)]));
-        let blocks = cells.div_ceil(super::passes::WORKGROUP as usize);
+        let blocks = cells.div_ceil((super::passes::WORKGROUP * super::passes::SCAN_CHUNK) as usize);
         by_slot[Slot::GridBlockSums.binding() as usize] =
             Some(create_init(device, Slot::GridBlockSums, &vec![0u8; 4 * (blocks + 1)]));
         let gs = |k: usize| create_init(device, Slot::GridSet, grid_sets[k]);

@@ -221,7 +221,7 @@ fn dispatch_class(spec: &PassSpec, grid: Option<GridOf>) -> usize {
             Some(GridOf::Boundary) => 2,
             _ => 0,
         },
-        Dispatch::GridCells => 3,
+        Dispatch::GridChunks => 3,
         Dispatch::GridCellsPlusOne => 4,
         Dispatch::One => 5,
     }
@@ -332,7 +332,7 @@ impl GpuSolver {
             capacity.div_ceil(passes::WORKGROUP),
             counts.solid.div_ceil(passes::WORKGROUP),
             counts.boundary.div_ceil(passes::WORKGROUP),
-            cells.div_ceil(passes::WORKGROUP),
+            cells.div_ceil(passes::SCAN_CHUNK).div_ceil(passes::WORKGROUP),
             (cells + 1).div_ceil(passes::WORKGROUP),
             1,
             0,
@@ -555,7 +555,7 @@ impl GpuSolver {
             Dispatch::Solid => self.counts.solid,
             Dispatch::Boundary => self.counts.boundary,
             Dispatch::GridParticles => set_n,
-            Dispatch::GridCells => self.cells,
+            Dispatch::GridChunks => self.cells.div_ceil(passes::SCAN_CHUNK),
             Dispatch::GridCellsPlusOne => self.cells + 1,
             Dispatch::One => return 1,
         };

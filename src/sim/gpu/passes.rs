@@ -11,6 +11,8 @@ use Slot::*;
 pub const WORKGROUP: u32 = 64;
 /// `grid_scan_top` runs as one workgroup of this size.
 pub const SCAN_WORKGROUP: u32 = 256;
+/// Cells per invocation of `grid_scan_blocks` and `grid_scan_apply` (`SCAN_CHUNK` in grid.wgsl).
+pub const SCAN_CHUNK: u32 = 8;
 
 /// How many invocations a pass needs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -20,8 +22,9 @@ pub enum Dispatch {
     Boundary,
     /// Particles of the grid instance's set.
     GridParticles,
-    /// Cells of the grid (+1 for the cursor array's sentinel).
-    GridCells,
+    /// Blocks of [`SCAN_CHUNK`] cells of the grid (one invocation each: the two block passes of the scan).
+    GridChunks,
+    /// Cells of the grid + 1 (the cursor array's sentinel).
     GridCellsPlusOne,
     /// One workgroup.
     One,
@@ -49,7 +52,7 @@ pub const GRID_COUNT: PassSpec = pass("grid_count", "grid", GRID_SLOTS, Dispatch
 /// Prefix sum of the cell counts in three phases (integer sums: bit-identical to the CPU's sequential
 /// scan): block counts, one workgroup over the block counts, block-local scans plus block offsets.
 const SCAN_SLOTS: &[Slot] = &[GridSet, GridCellStart, GridCursor, GridBlockSums];
-pub const GRID_SCAN_BLOCKS: PassSpec = pass("grid_scan_blocks", "grid", SCAN_SLOTS, Dispatch::GridCells);
+pub const GRID_SCAN_BLOCKS: PassSpec = pass("grid_scan_blocks", "grid", SCAN_SLOTS, Dispatch::GridChunks);
 pub const GRID_SCAN_TOP: PassSpec = PassSpec {
     entry: "grid_scan_top",
     family: "grid",
@@ -57,9 +60,10 @@ pub const GRID_SCAN_TOP: PassSpec = PassSpec {
     slots: SCAN_SLOTS,
     dispatch: Dispatch::One,
 };
-pub const GRID_SCAN_APPLY: PassSpec = pass("grid_scan_apply", "grid", SCAN_SLOTS, Dispatch::GridCells);
+pub const GRID_SCAN_APPLY: PassSpec = pass("grid_scan_apply", "grid", SCAN_SLOTS, Dispatch::GridChunks);
 pub const GRID_SCATTER: PassSpec = pass("grid_scatter", "grid", GRID_SLOTS, Dispatch::GridParticles);
-pub const GRID_SORT_CELLS: PassSpec = pass("grid_sort_cells", "grid", GRID_SLOTS, Dispatch::GridCells);
+/// One invocation per particle of the set: the first to claim its cell sorts the cell's range.
+pub const GRID_SORT_CELLS: PassSpec = pass("grid_sort_cells", "grid", GRID_SLOTS, Dispatch::GridParticles);
 /// The liquid renumbered into the cell order of its fresh list (twin: `grid::grid_reorder`): gather into
 /// the scratch, then copy back and point the list at the new places.
 const REORDER_SLOTS: &[Slot] = &[Params, LiquidPos, LiquidVel, LiquidAcc0, LiquidId, LiquidOrder, LiquidScratch];
