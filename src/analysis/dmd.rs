@@ -1808,11 +1808,27 @@ mod tests {
         v.iter().map(|x| x * x).sum::<f64>().sqrt()
     }
 
-    fn temp_dir(name: &str) -> PathBuf {
+    /// A fresh temporary directory for one test, removed with everything in it when dropped.
+    struct TmpDir(PathBuf);
+
+    impl Drop for TmpDir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
+    impl std::ops::Deref for TmpDir {
+        type Target = std::path::Path;
+        fn deref(&self) -> &std::path::Path {
+            &self.0
+        }
+    }
+
+    fn temp_dir(name: &str) -> TmpDir {
         let d = std::env::temp_dir().join(format!("perfuse_dmd_test_{name}_{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).expect("temp dir");
-        d
+        TmpDir(d)
     }
 
     // --- 1. synthetic linear system ------------------------------------------------------------------------
@@ -2204,7 +2220,6 @@ mod tests {
         assert!((sv.columns[3][4 + 2] - vx).abs() < 1e-6 && (sv.columns[3][4 + 3] - vy).abs() < 1e-6);
         let sc = load_frames_components(&dir, 0.1, &[Component::Vx, Component::Vy, Component::Vz]).expect("load c");
         assert_eq!(sc.state_dim(), 9);
-        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -2216,7 +2231,6 @@ mod tests {
         let s = load_frames(&dir, 0.1, FrameFields::default()).expect("load");
         assert_eq!(s.len(), 4);
         assert_eq!(s.layout.as_ref().map(|l| l.dropped_frames.clone()), Some(vec!["frame_00004.csv".to_string()]));
-        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -2301,9 +2315,6 @@ mod tests {
         write_frame(&dir2, 0, &[("liquid", 2, 0.0, 0.0, 0.0, 0.0), ("liquid", 5, 1.0, 0.3, 0.0, 0.0)]);
         let s = load_frames(&dir2, 0.1, FrameFields::default()).expect("one frame");
         assert!(matches!(fit(&s, RankSelection::Full), Err(DmdError::TooFewSnapshots { got: 1 })));
-        for d in [dir, dir2] {
-            let _ = std::fs::remove_dir_all(d);
-        }
     }
 
     // --- 6. outputs -----------------------------------------------------------------------------------------
@@ -2396,8 +2407,5 @@ mod tests {
         .expect("run");
         assert!(r2.rank <= report.rank && r2.energy_at_rank >= 0.99);
         assert!(out2.join("dmd.json").exists());
-        for d in [frames, out] {
-            let _ = std::fs::remove_dir_all(d);
-        }
     }
 }

@@ -1060,12 +1060,27 @@ mod tests {
     use super::*;
     use std::path::PathBuf;
 
-    /// A fresh temporary directory for one test.
-    fn tmp_dir(name: &str) -> PathBuf {
+    /// A fresh temporary directory for one test, removed with everything in it when dropped.
+    struct TmpDir(PathBuf);
+
+    impl Drop for TmpDir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
+    impl std::ops::Deref for TmpDir {
+        type Target = std::path::Path;
+        fn deref(&self) -> &std::path::Path {
+            &self.0
+        }
+    }
+
+    fn tmp_dir(name: &str) -> TmpDir {
         let d = std::env::temp_dir().join(format!("perfuse-mesh-{}-{name}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).expect("temp dir");
-        d
+        TmpDir(d)
     }
 
     /// Axis-aligned box [lo, hi], outward triangles.
