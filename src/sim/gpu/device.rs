@@ -51,21 +51,51 @@ pub struct GpuContext {
 }
 
 /// Sets `XDG_RUNTIME_DIR` to a private 0700 directory if it is unset, which silences the
-/// "XDG_RUNTIME_DIR is invalid" errors Mesa prints for every instance on headless machines.
+/// "XDG_RUNTIME_DIR is invalid" errors Mesa prints for every instance on headless machines. The
+/// directory is the user's own (`perfuse-xdg-<uid>` in the temp directory, as `.ci/run` names it), so
+/// runs do not leave one behind each; where that name is taken by another user, one per process.
 fn ensure_runtime_dir() {
     if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
         return;
     }
-    let dir = std::env::temp_dir().join(format!("perfuse-xdg-{}", std::process::id()));
-    if std::fs::create_dir_all(&dir).is_ok() {
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
-        }
+    let tmp = std::env::temp_dir();
+    let dir = match private_dir(&tmp.join(format!("perfuse-xdg-{}", user_tag()))) {
+        Some(d) => Some(d),
+        None => private_dir(&tmp.join(format!("perfuse-xdg-{}-{}", user_tag(), std::process::id()))),
+    };
+    if let Some(dir) = dir {
         // SAFETY: called before any wgpu instance exists; the variable is only read by drivers.
         unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
     }
+}
+
+/// The current user's id where the platform has one (Unix: the owner of a file this process creates
+/// is its effective user; read from `/proc/self`), else "user".
+fn user_tag() -> String {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let Ok(m) = std::fs::metadata("/proc/self") {
+            return m.uid().to_string();
+        }
+    }
+    String::from("user")
+}
+
+/// `dir`, created if missing, when it is a directory this process owns and can make 0700.
+fn private_dir(dir: &std::path::Path) -> Option<std::path::PathBuf> {
+    std::fs::create_dir_all(dir).ok()?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::{MetadataExt, PermissionsExt};
+        let mine = std::fs::metadata("/proc/self").map(|m| m.uid()).ok()?;
+        let m = std::fs::symlink_metadata(dir).ok()?;
+        if !m.is_dir() || m.uid() != mine {
+            return None;
+        }
+        std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700)).ok()?;
+    }
+    Some(dir.to_path_buf())
 }
 
 /// The instance: native back-ends without GL (STACK: the GL llvmpipe must not be picked).
