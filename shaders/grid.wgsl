@@ -12,13 +12,13 @@
 const GRID_WG: u32 = 64u;
 const SCAN_WG: u32 = 256u;
 
+// The cursors of cells 0 ..= cells (the last a sentinel) to 0, SCAN_CHUNK consecutive cells per lane.
 @compute @workgroup_size(64)
 fn grid_clear(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let c = gid.x;
-    if (c > grid_set.cells) {
-        return;
+    let first = gid.x * SCAN_CHUNK;
+    for (var c = first; c < first + SCAN_CHUNK && c <= grid_set.cells; c++) {
+        atomicStore(&grid_cursor[c], 0u);
     }
-    atomicStore(&grid_cursor[c], 0u);
 }
 
 @compute @workgroup_size(64)
@@ -35,10 +35,11 @@ fn grid_count(@builtin(global_invocation_id) gid: vec3<u32>) {
 var<workgroup> scan_partial: array<u32, 256>;
 var<workgroup> scan_local: array<u32, 64>;
 
-// Cells per invocation of the two block passes (twin: passes.rs SCAN_CHUNK): a block is GRID_WG lanes
-// of SCAN_CHUNK consecutive cells each, so the lane-0 loop that combines a block's lanes runs once per
-// 512 cells, not per 64 (the grid has a cell per (R/2)³ of the whole domain, mostly empty; the 64k
-// block's 170k cells per set: the two passes 8.3 → 2.0 ms per step on lavapipe, 4 cells per lane 2.7).
+// Cells per invocation of grid_clear and the scan's two block passes (twin: passes.rs SCAN_CHUNK): a
+// block is GRID_WG lanes of SCAN_CHUNK consecutive cells each, so the lane-0 loop that combines a
+// block's lanes runs once per 512 cells, not per 64 (the grid has a cell per (R/2)³ of the whole
+// domain, mostly empty; the 64k block's 170k cells per set: the block passes 8.3 → 2.0 ms per step on
+// lavapipe, 4 cells per lane 2.7).
 const SCAN_CHUNK: u32 = 8u;
 
 // The counts of this lane's SCAN_CHUNK cells of block b (0 past the last cell); their sum goes to

@@ -222,7 +222,7 @@ fn dispatch_class(spec: &PassSpec, grid: Option<GridOf>) -> usize {
             _ => 0,
         },
         Dispatch::GridChunks => 3,
-        Dispatch::GridCellsPlusOne => 4,
+        Dispatch::GridChunksPlusOne => 4,
         Dispatch::One => 5,
     }
 }
@@ -333,7 +333,7 @@ impl GpuSolver {
             counts.solid.div_ceil(passes::WORKGROUP),
             counts.boundary.div_ceil(passes::WORKGROUP),
             cells.div_ceil(passes::SCAN_CHUNK).div_ceil(passes::WORKGROUP),
-            (cells + 1).div_ceil(passes::WORKGROUP),
+            (cells + 1).div_ceil(passes::SCAN_CHUNK).div_ceil(passes::WORKGROUP),
             1,
             0,
             0,
@@ -556,7 +556,7 @@ impl GpuSolver {
             Dispatch::Boundary => self.counts.boundary,
             Dispatch::GridParticles => set_n,
             Dispatch::GridChunks => self.cells.div_ceil(passes::SCAN_CHUNK),
-            Dispatch::GridCellsPlusOne => self.cells + 1,
+            Dispatch::GridChunksPlusOne => (self.cells + 1).div_ceil(passes::SCAN_CHUNK),
             Dispatch::One => return 1,
         };
         n.div_ceil(spec.workgroup_size)

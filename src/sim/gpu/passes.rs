@@ -11,7 +11,8 @@ use Slot::*;
 pub const WORKGROUP: u32 = 64;
 /// `grid_scan_top` runs as one workgroup of this size.
 pub const SCAN_WORKGROUP: u32 = 256;
-/// Cells per invocation of `grid_scan_blocks` and `grid_scan_apply` (`SCAN_CHUNK` in grid.wgsl).
+/// Cells per invocation of `grid_clear`, `grid_scan_blocks` and `grid_scan_apply` (`SCAN_CHUNK` in
+/// grid.wgsl).
 pub const SCAN_CHUNK: u32 = 8;
 
 /// How many invocations a pass needs.
@@ -24,8 +25,8 @@ pub enum Dispatch {
     GridParticles,
     /// Blocks of [`SCAN_CHUNK`] cells of the grid (one invocation each: the two block passes of the scan).
     GridChunks,
-    /// Cells of the grid + 1 (the cursor array's sentinel).
-    GridCellsPlusOne,
+    /// Blocks of [`SCAN_CHUNK`] of the grid's cells + 1 (the cursor array's sentinel): `grid_clear`.
+    GridChunksPlusOne,
     /// One workgroup.
     One,
 }
@@ -47,7 +48,7 @@ const fn pass(entry: &'static str, family: &'static str, slots: &'static [Slot],
 const GRID_SLOTS: &[Slot] = &[Params, GridSet, GridPos, GridOrder, GridCellStart, GridCellOf, GridCursor];
 const NBR_ALL: [Slot; 6] = [LiquidOrder, LiquidCellStart, SolidOrder, SolidCellStart, BoundaryOrder, BoundaryCellStart];
 
-pub const GRID_CLEAR: PassSpec = pass("grid_clear", "grid", GRID_SLOTS, Dispatch::GridCellsPlusOne);
+pub const GRID_CLEAR: PassSpec = pass("grid_clear", "grid", GRID_SLOTS, Dispatch::GridChunksPlusOne);
 pub const GRID_COUNT: PassSpec = pass("grid_count", "grid", GRID_SLOTS, Dispatch::GridParticles);
 /// Prefix sum of the cell counts in three phases (integer sums: bit-identical to the CPU's sequential
 /// scan): block counts, one workgroup over the block counts, block-local scans plus block offsets.
