@@ -69,8 +69,8 @@ fn ensure_runtime_dir() {
     }
 }
 
-/// The current user's id where the platform has one (Unix: the owner of a file this process creates
-/// is its effective user; read from `/proc/self`), else "user".
+/// The current user's id where the platform shows it (Linux: the owner of `/proc/self`, the process's
+/// effective user), else "user".
 fn user_tag() -> String {
     #[cfg(unix)]
     {
