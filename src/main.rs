@@ -346,7 +346,7 @@ fn render_command(
         None => vec![at],
         Some((every, until)) => {
             if !(every.is_finite() && every > 0.0) {
-                bail!("--every must be a positive number of seconds, got {every}");
+                bail!("--every must be a positive, finite number of seconds, got {every}");
             }
             if !(until.is_finite() && until >= at) {
                 bail!("--until must be a time ≥ --at ({at} s), got {until}");
@@ -538,7 +538,7 @@ fn real_main() -> Result<()> {
                 }
             };
             if !(dt.is_finite() && dt > 0.0) {
-                bail!("frame interval {dt} s must be positive");
+                bail!("frame interval {dt} s must be positive and finite");
             }
             let sel = dmd::rank_selection_from_cli(rank, energy)?;
             let report = dmd::run_dmd(&frames, dt, dmd::FrameFields { velocities }, sel, amplitudes.into(), &out)?;
@@ -558,7 +558,7 @@ fn real_main() -> Result<()> {
             if let Some(dt) = every
                 && !(dt.is_finite() && dt > 0.0)
             {
-                bail!("--every must be a positive number of seconds, got {dt}");
+                bail!("--every must be a positive, finite number of seconds, got {dt}");
             }
             let rec = read_recording_file(&file)?;
             for w in &rec.warnings {
@@ -667,7 +667,7 @@ fn real_main() -> Result<()> {
             if let Some(t) = until
                 && !(t.is_finite() && t > 0.0)
             {
-                bail!("--until must be a positive number of seconds, got {t}");
+                bail!("--until must be a positive, finite number of seconds, got {t}");
             }
             let length = match (until, steps) {
                 (Some(t), _) => Some(RunLength::Until(t)),
@@ -699,7 +699,7 @@ fn real_main() -> Result<()> {
         Cmd::Bench { sizes, scenario, set, backends, seconds, json, record, shuffle_liquid, entry_points } => {
             let setup = perfuse::bench::Setup { shuffled_liquid: shuffle_liquid, entry_points };
             if !(seconds.is_finite() && seconds > 0.0) {
-                bail!("--seconds must be positive, got {seconds}");
+                bail!("--seconds must be a positive, finite number of seconds, got {seconds}");
             }
             let scenarios: Vec<perfuse::scenario::Scenario> = match &scenario {
                 Some(path) => vec![Scenario::load_with_overrides(path, &set)?],
