@@ -331,6 +331,17 @@ pub fn cost_slope(rows: &[&BenchRow]) -> Option<f64> {
     (sxx > 0.0).then(|| sxy / sxx)
 }
 
+/// `text` cut to `width` characters for a table column, its end marked by an ellipsis where cut (an
+/// adapter's name such as "llvmpipe (LLVM 15.0.6, 256 bits)" is longer than the column).
+fn column(text: &str, width: usize) -> String {
+    if text.chars().count() <= width {
+        return text.to_string();
+    }
+    let mut cut: String = text.chars().take(width.saturating_sub(1)).collect();
+    cut.push('…');
+    cut
+}
+
 /// Formats rows as a plain-text table.
 pub fn table(rows: &[BenchRow]) -> String {
     let mut out = format!(
@@ -342,7 +353,7 @@ pub fn table(rows: &[BenchRow]) -> String {
         out.push_str(&format!(
             "{:<8} {:<28} {:>9} {:>6} {:>12.3e} {:>10.2} {:>8.0} {:>10.2e} {:>9}  {}\n",
             r.backend,
-            r.adapter.chars().take(28).collect::<String>(),
+            column(&r.adapter, 28),
             r.particles,
             r.steps,
             r.ps_per_s,
@@ -359,11 +370,24 @@ pub fn table(rows: &[BenchRow]) -> String {
             out.push_str(&format!(
                 "{} {} at {}: GPU error scopes {us:.1} µs of host time per batch ({b} batches; {:.1e} of a batch's wall time)\n",
                 r.backend,
-                r.adapter.chars().take(28).collect::<String>(),
+                r.adapter,
                 r.particles,
                 us * 1e-3 / (r.ms_per_step * steps_per_batch.max(1.0)),
             ));
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::column;
+
+    #[test]
+    fn a_long_adapter_name_is_cut_with_an_ellipsis() {
+        assert_eq!(column("rayon, 2 threads", 28), "rayon, 2 threads");
+        let cut = column("llvmpipe (LLVM 15.0.6, 256 bits)", 28);
+        assert_eq!(cut.chars().count(), 28);
+        assert_eq!(cut, "llvmpipe (LLVM 15.0.6, 256 …");
+    }
 }
