@@ -19,3 +19,5 @@ pub mod render;
 pub mod replay;
 pub mod scenario;
 pub mod sim;
+#[cfg(test)]
+mod test_dir;

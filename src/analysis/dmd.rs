@@ -1711,6 +1711,7 @@ fn draw_chart(path: &Path, spec: &ChartSpec) -> Result<(), DmdError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_dir::TmpDir;
     use std::f64::consts::PI;
 
     /// SplitMix64 + Box–Muller (no rand dependency).
@@ -1808,27 +1809,9 @@ mod tests {
         v.iter().map(|x| x * x).sum::<f64>().sqrt()
     }
 
-    /// A fresh temporary directory for one test, removed with everything in it when dropped.
-    struct TmpDir(PathBuf);
-
-    impl Drop for TmpDir {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
-
-    impl std::ops::Deref for TmpDir {
-        type Target = std::path::Path;
-        fn deref(&self) -> &std::path::Path {
-            &self.0
-        }
-    }
-
+    /// A fresh temporary directory for one test (removed when it ends).
     fn temp_dir(name: &str) -> TmpDir {
-        let d = std::env::temp_dir().join(format!("perfuse_dmd_test_{name}_{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).expect("temp dir");
-        TmpDir(d)
+        TmpDir::new(&format!("perfuse_dmd_test_{name}"))
     }
 
     // --- 1. synthetic linear system ------------------------------------------------------------------------

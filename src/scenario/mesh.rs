@@ -1058,29 +1058,11 @@ fn axis_verdicts(soup: &[[[f64; 3]; 3]], lat: &Lattice, axis: usize) -> (Vec<u8>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::PathBuf;
+    use crate::test_dir::TmpDir;
 
-    /// A fresh temporary directory for one test, removed with everything in it when dropped.
-    struct TmpDir(PathBuf);
-
-    impl Drop for TmpDir {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
-
-    impl std::ops::Deref for TmpDir {
-        type Target = std::path::Path;
-        fn deref(&self) -> &std::path::Path {
-            &self.0
-        }
-    }
-
+    /// A fresh temporary directory for one test (removed when it ends).
     fn tmp_dir(name: &str) -> TmpDir {
-        let d = std::env::temp_dir().join(format!("perfuse-mesh-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).expect("temp dir");
-        TmpDir(d)
+        TmpDir::new(&format!("perfuse-mesh-{name}"))
     }
 
     /// Axis-aligned box [lo, hi], outward triangles.
