@@ -44,6 +44,11 @@ struct WindowArgs {
     /// Viewer: start paused.
     #[arg(long)]
     paused: bool,
+    /// Viewer: relax the organ live even when this build has kept the scenario's relaxed state from an
+    /// earlier launch (in $PERFUSE_CACHE_DIR, else $XDG_CACHE_HOME/perfuse/relaxed or
+    /// ~/.cache/perfuse/relaxed; PERFUSE_CACHE_DIR= keeps none); the new state replaces the kept one.
+    #[arg(long)]
+    fresh_relaxation: bool,
 }
 
 /// The scenario `cargo run --release` opens.
@@ -501,6 +506,8 @@ fn open_viewer(
         record,
         replay,
         pace,
+        relaxed_cache: perfuse::replay::relaxed_cache::RelaxedCache::user_default(),
+        fresh_relaxation: window.fresh_relaxation,
     };
     let report = perfuse::app::run(opts)?;
     println!(

@@ -349,3 +349,66 @@ fn keyframe_shape_is_pinned_to_the_snapshot_layout() {
         assert_eq!((SNAPSHOT_LAYOUT, fnv1a(&gpu)), (5, 4_736_115_783_571_168_898), "{bump}");
     });
 }
+
+/// The viewer's cache of relaxed states (`replay::relaxed_cache`): a simulation that restores the
+/// cached state is where the relaxation left the one that kept it, bit for bit, and steps on to the
+/// same states; another scenario finds nothing; a damaged file is reported, naming it, and leaves
+/// the simulation as built; only the newest `KEEP` files stay.
+#[test]
+fn a_cached_relaxed_state_restores_the_relaxation_bit_for_bit() {
+    use perfuse::replay::relaxed_cache::{CacheError, Engine, KEEP, RelaxedCache};
+    let dir = temp("relaxed-cache");
+    let _ = std::fs::remove_dir_all(&dir);
+    let cache = RelaxedCache::new(&dir);
+    let sc = perfused_block()
+        .with_override("relaxation=Some(Relaxation(duration: 4e-5, damping: 20.0, gravity_solid_only: true))")
+        .expect("valid");
+    // the first launch relaxes and keeps the state at t = 0
+    let mut a = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    assert!(cache.restore(&sc, &mut a).expect("no file is not an error").is_none());
+    a.relax(|_| {}).expect("relax");
+    let relaxed_steps = a.stats().steps;
+    assert!(relaxed_steps >= 2 && a.time().abs() < 1e-12, "{relaxed_steps} steps, t = {}", a.time());
+    let snap = a.snapshot().expect("snapshot");
+    let file = cache.store(&sc, &Engine::of(&a), &snap, None).expect("stored");
+    assert_eq!(file, cache.path_for(&sc, &Engine::of(&a)));
+    let hash0 = a.read_state().expect("state").hash();
+    a.advance(5, f64::INFINITY).expect("step");
+    let hash5 = a.read_state().expect("state").hash();
+    // the next launch starts there without relaxing
+    let mut b = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    let restored = cache.restore(&sc, &mut b).expect("readable").expect("cached");
+    assert_eq!(restored.file, file);
+    assert_eq!(b.stats().steps, relaxed_steps);
+    assert_eq!(b.read_state().expect("state").hash(), hash0, "the relaxed state, bit for bit");
+    b.advance(5, f64::INFINITY).expect("step");
+    assert_eq!(b.read_state().expect("state").hash(), hash5, "and the same states after it");
+    // another scenario (a changed parameter) has no cached state
+    let other = sc.with_override("liquid.viscosity=0.4").expect("valid");
+    let mut c = Simulation::new(&other, BackendKind::Cpu).expect("sim");
+    assert!(cache.restore(&other, &mut c).expect("readable").is_none());
+    // a damaged file: reported with its name, the simulation left as built
+    let mut bytes = std::fs::read(&file).expect("read");
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x5a;
+    std::fs::write(&file, &bytes).expect("write");
+    let mut d = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+    let err = cache.restore(&sc, &mut d).expect_err("damaged");
+    let msg = err.to_string();
+    assert!(matches!(err, CacheError::Replay(_) | CacheError::Unusable { .. }), "{err:?}");
+    assert!(msg.contains(&file.display().to_string()), "names the file: {msg}");
+    assert_eq!((d.stats().steps, d.time()), (0, Simulation::new(&sc, BackendKind::Cpu).expect("sim").time()));
+    // storing again replaces it; other scenarios' files beyond KEEP are pruned, oldest first
+    cache.store(&sc, &Engine::of(&a), &snap, None).expect("stored again");
+    assert!(cache.restore(&sc, &mut d).expect("readable").is_some());
+    for k in 0..KEEP + 2 {
+        let s = sc.with_override(&format!("liquid.viscosity={}", 0.5 + k as f64 * 0.01)).expect("valid");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        cache.store(&s, &Engine::of(&a), &snap, None).expect("stored");
+    }
+    let kept = std::fs::read_dir(&dir).expect("dir").filter_map(Result::ok).count();
+    assert_eq!(kept, KEEP, "only the newest {KEEP} are kept");
+    assert!(!file.exists(), "the oldest went first");
+    eprintln!("relaxed cache: {relaxed_steps} relaxation steps skipped, {} bytes per state", bytes.len());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -201,7 +201,15 @@ fn replay_mode_seeks_and_takes_over_with_a_branch() {
         // Live: a few steps, then record from the middle of the session.
         let (tx, rx) = std::sync::mpsc::channel();
         let shared = Arc::new(Shared::default());
-        let start = Start { use_gpu: false, scenario: sc.clone(), paused: true, record: None, replay: None };
+        let start = Start {
+            use_gpu: false,
+            scenario: sc.clone(),
+            paused: true,
+            record: None,
+            replay: None,
+            relaxed_cache: None,
+            fresh_relaxation: false,
+        };
         let handle = spawn_with(ctx.clone(), start, rx, shared.clone()).expect("thread");
         wait_for(&shared, "first publish", |s| s.publishes >= 1);
         for _ in 0..3 {
@@ -227,7 +235,15 @@ fn replay_mode_seeks_and_takes_over_with_a_branch() {
         // Replay it in the thread: plays to the end and pauses there.
         let (tx, rx) = std::sync::mpsc::channel();
         let shared = Arc::new(Shared::default());
-        let start = Start { use_gpu: false, scenario: sc, paused: false, record: None, replay: Some(rec.clone()) };
+        let start = Start {
+            use_gpu: false,
+            scenario: sc,
+            paused: false,
+            record: None,
+            replay: Some(rec.clone()),
+            relaxed_cache: None,
+            fresh_relaxation: false,
+        };
         let handle = spawn_with(ctx, start, rx, shared.clone()).expect("thread");
         let st = wait_for(&shared, "end of the replay", |s| s.replay.as_ref().is_some_and(|r| r.at_end) && s.paused);
         assert_eq!(st.steps, 23, "{st:?}");
@@ -260,6 +276,100 @@ fn replay_mode_seeks_and_takes_over_with_a_branch() {
         let out = replay(&b, BackendKind::Cpu, true).expect("branch replays");
         assert!(out.hashes_checked >= 2 && out.mismatches.is_empty(), "{out:?}");
         assert_eq!(out.steps, taken_at + 8);
+        let _ = std::fs::remove_dir_all(&dir);
+    });
+}
+
+/// The viewer's cache of relaxed states (`replay::relaxed_cache`): the first launch relaxes live and
+/// keeps the state at t = 0 on disk; the next launch of the same scenario starts there — at t = 0
+/// with the relaxation's steps counted, not relaxing, the panel naming the kept file — and a
+/// recording made by it starts with a keyframe of that state and replays with every hash equal;
+/// `--fresh-relaxation` relaxes live again.
+#[test]
+fn a_second_launch_starts_from_the_kept_relaxed_state() {
+    use perfuse::app::sim_thread::{Start, spawn_with};
+    use perfuse::replay::format::{ChunkKind, read_recording_file};
+    use perfuse::replay::relaxed_cache::{Engine, RelaxedCache};
+    use perfuse::replay::session::replay;
+    use perfuse::sim::{BackendKind, Simulation};
+    gpu_test("a_second_launch_starts_from_the_kept_relaxed_state", |ctx| {
+        let dir = std::env::temp_dir().join(format!("perfuse-relaxed-launch-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let cache = RelaxedCache::new(dir.join("cache"));
+        let sc = common::scenes::perfused_block()
+            .with_override("relaxation=Some(Relaxation(duration: 4e-5, damping: 20.0, gravity_solid_only: true))")
+            .expect("valid");
+        let file = cache.path_for(&sc, &Engine::of(&Simulation::new(&sc, BackendKind::Cpu).expect("sim")));
+        let launch = |fresh: bool, record: Option<std::path::PathBuf>| {
+            let (tx, rx) = std::sync::mpsc::channel();
+            let shared = Arc::new(Shared::default());
+            let start = Start {
+                use_gpu: false,
+                scenario: sc.clone(),
+                paused: true,
+                record,
+                replay: None,
+                relaxed_cache: Some(cache.clone()),
+                fresh_relaxation: fresh,
+            };
+            let handle = spawn_with(ctx.clone(), start, rx, shared.clone()).expect("thread");
+            wait_for(&shared, "first publish", |s| s.publishes >= 1);
+            (tx, shared, handle)
+        };
+        // first launch: relaxes live, step by step, and keeps the state
+        let (tx, shared, handle) = launch(false, None);
+        assert!(lock(&shared.status).relaxed_from.is_none());
+        let mut k = 0;
+        let steps_relaxed = loop {
+            k += 1;
+            assert!(k < 50, "the relaxation does not end");
+            tx.send(Control::Step).expect("send");
+            let st = wait_for(&shared, "one step", |s| s.steps == k);
+            assert!(k > 1 || st.relaxing, "the first launch relaxes: {st:?}");
+            std::thread::sleep(Duration::from_millis(50));
+            if !lock(&shared.status).relaxing {
+                break k;
+            }
+        };
+        let start = Instant::now();
+        while !file.exists() {
+            assert!(start.elapsed() < Duration::from_secs(60), "{} was not written", file.display());
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        tx.send(Control::Quit).expect("send");
+        handle.join().expect("thread ends");
+
+        // second launch, recording: starts at t = 0 from the kept state
+        let rec_path = dir.join("from-cache.pfrec");
+        let (tx, shared, handle) = launch(false, Some(rec_path.clone()));
+        let st = lock(&shared.status).clone();
+        assert_eq!(st.steps, steps_relaxed, "{st:?}");
+        assert!(st.t.abs() < 1e-12 && !st.relaxing && st.error.is_none(), "{st:?}");
+        assert_eq!(st.relaxed_from.as_deref(), Some(file.display().to_string().as_str()));
+        for _ in 0..3 {
+            tx.send(Control::Step).expect("send");
+        }
+        let on = wait_for(&shared, "three steps", |s| s.steps == steps_relaxed + 3);
+        assert!(on.t > 0.0 && !on.relaxing, "{on:?}");
+        tx.send(Control::Quit).expect("send");
+        handle.join().expect("thread ends");
+        let rec = read_recording_file(&rec_path).expect("recording");
+        assert!(rec.is_clean(), "{:?}", rec.warnings);
+        assert_eq!(rec.chunks.first().map(|c| (c.kind, c.step)), Some((ChunkKind::Keyframe, steps_relaxed)));
+        let out = replay(&rec, BackendKind::Cpu, true).expect("replays");
+        assert!(out.hashes_checked >= 1 && out.mismatches.is_empty(), "{out:?}");
+        assert_eq!(out.steps, steps_relaxed + 3);
+
+        // --fresh-relaxation: relaxes live again
+        let (tx, shared, handle) = launch(true, None);
+        let st = lock(&shared.status).clone();
+        assert!(st.steps == 0 && st.relaxed_from.is_none(), "{st:?}");
+        tx.send(Control::Step).expect("send");
+        let st = wait_for(&shared, "one step", |s| s.steps == 1);
+        assert!(st.relaxing && st.t < 0.0, "{st:?}");
+        tx.send(Control::Quit).expect("send");
+        handle.join().expect("thread ends");
+        eprintln!("relaxed cache: the second launch skipped {steps_relaxed} relaxation steps ({})", file.display());
         let _ = std::fs::remove_dir_all(&dir);
     });
 }

@@ -25,6 +25,7 @@ fn viewer_draws_frames_under_xvfb_and_saves_a_screenshot() {
     let scenario = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/liver.ron");
     let out = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1024x700x24"])
+        .env("PERFUSE_CACHE_DIR", "") // no relaxed state kept in the user's cache by a test
         .arg(env!("CARGO_BIN_EXE_perfuse"))
         .arg("--scenario")
         .arg(&scenario)

@@ -44,6 +44,11 @@ pub struct ViewerOptions {
     pub replay: Option<crate::replay::format::Recording>,
     /// Start the live run paced at this many simulated seconds per wall second (`--pace`).
     pub pace: Option<f64>,
+    /// Keep relaxed states here between launches and start from them
+    /// (`replay::relaxed_cache::RelaxedCache::user_default()`; `None`: relax every time).
+    pub relaxed_cache: Option<crate::replay::relaxed_cache::RelaxedCache>,
+    /// Relax live even when a relaxed state is cached (`--fresh-relaxation`; the new one replaces it).
+    pub fresh_relaxation: bool,
 }
 
 /// Why the viewer could not run.
@@ -184,6 +189,8 @@ impl App {
             paused: self.opts.paused,
             record: self.opts.record.clone(),
             replay: self.opts.replay.clone(),
+            relaxed_cache: self.opts.relaxed_cache.clone(),
+            fresh_relaxation: self.opts.fresh_relaxation,
         };
         let sim_thread = sim_thread::spawn_with(ctx.clone(), start, rx, shared.clone())
             .map_err(|e| AppError::Gpu(format!("could not start the simulation thread: {e}")))?;

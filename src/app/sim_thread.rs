@@ -12,6 +12,7 @@
 //! turns the player's simulation into a live one, optionally recording a branch.
 
 use crate::replay::format::Recording;
+use crate::replay::relaxed_cache::RelaxedCache;
 use crate::replay::session::{HASH_EVERY, KEYFRAME_EVERY, Player, RecordedSimulation, Recorder, recorded_scenario};
 use crate::scenario::Scenario;
 use crate::sim::frame::{FrameBuffers, FrameInfo};
@@ -103,6 +104,8 @@ pub struct SimStatus {
     pub broken_bonds: u64,
     pub paused: bool,
     pub relaxing: bool,
+    /// The cached relaxed state this run started from (`replay::relaxed_cache`), instead of relaxing.
+    pub relaxed_from: Option<String>,
     /// Set when the simulation diverged: it is paused with its last good state.
     pub diverged: Option<String>,
     /// A command or build failure to show (cleared by the next success).
@@ -224,6 +227,10 @@ struct Runner {
     /// restores it instead of relaxing the organ again (a trainee repeating a cut does not wait for the
     /// relaxation each time). Cleared when another scenario is loaded.
     relaxed: Option<Box<(crate::sim::snapshot::Snapshot, Option<crate::sim::physiology::Patient>)>>,
+    /// Where relaxed states are kept between launches (`None`: not kept).
+    relaxed_cache: Option<RelaxedCache>,
+    /// Relax live even when a relaxed state is cached (and replace it).
+    fresh_relaxation: bool,
     batch: u32,
     rate: RateMeter,
     /// `Control::Pace`: the live run's cap on simulated seconds per wall second.
@@ -260,6 +267,8 @@ impl Runner {
         if let Some(sim) = self.simulation() {
             let (nl, ns) = sim.frame_counts();
             (status.n_liquid, status.n_solid) = (nl, ns);
+            // a run restored from the relaxed-state cache starts at t = 0 after the relaxation's steps
+            (status.t, status.steps, status.broken_bonds) = (sim.time(), sim.stats().steps, sim.stats().broken_bonds);
             status.backend = sim.backend_name();
             self.generation += 1;
             let sets = [
@@ -309,9 +318,19 @@ impl Runner {
         };
         let mut sim = RecordedSimulation { sim, recorder };
         self.patient = self.new_patient(status);
-        // The scenario's damped relaxation runs live, before t = 0 (SPEC §7.5).
+        // The scenario's damped relaxation runs live, before t = 0 (SPEC §7.5), unless this build has
+        // kept the state it reaches (a recording then starts with a keyframe of it).
         self.relax_end = None;
-        if let Some(r) = self.scenario.relaxation.clone().filter(|r| r.duration > 0.0) {
+        if let Some(restored) = self.restore_cached(&mut sim.sim) {
+            status.relaxed_from = Some(restored.file.display().to_string());
+            if restored.patient.is_some() {
+                self.patient = restored.patient.clone();
+            }
+            self.relaxed = Some(Box::new((restored.snapshot, self.patient.clone())));
+            if let Err(e) = sim.keyframe(self.patient.as_ref()) {
+                status.error = Some(format!("recording: {e}"));
+            }
+        } else if let Some(r) = self.scenario.relaxation.clone().filter(|r| r.duration > 0.0) {
             let setup = r.start_commands().iter().try_for_each(|c| sim.apply(c));
             match setup {
                 Ok(()) => self.relax_end = Some(0.0),
@@ -320,6 +339,31 @@ impl Runner {
         }
         self.since_keyframe = Duration::ZERO;
         self.sim = Some(Mode::Live(sim));
+    }
+
+    /// The scenario's relaxed state from the cache, restored into `sim` (just built): `None` when the
+    /// scenario has no relaxation, nothing is cached, `--fresh-relaxation` was given, or the cached
+    /// file does not fit (reported; `sim` is then rebuilt if the restore touched it).
+    fn restore_cached(&self, sim: &mut Simulation) -> Option<crate::replay::relaxed_cache::Restored> {
+        let cache = self.relaxed_cache.as_ref().filter(|_| !self.fresh_relaxation)?;
+        self.scenario.relaxation.as_ref().filter(|r| r.duration > 0.0)?;
+        match cache.restore(&self.scenario, sim) {
+            Ok(Some(r)) => {
+                log::info!("relaxed state restored from {} (--fresh-relaxation relaxes again)", r.file.display());
+                Some(r)
+            }
+            Ok(None) => None,
+            Err(e) => {
+                log::warn!("{e}");
+                // a GPU restore that failed midway may have written part of the state
+                if (self.use_gpu || sim.time() != 0.0 || sim.stats().steps != 0)
+                    && let Ok(s) = Simulation::with_gpu(&self.scenario, self.use_gpu.then(|| self.ctx.clone()))
+                {
+                    *sim = s;
+                }
+                None
+            }
+        }
     }
 
     fn build_replay(&mut self, rec: Recording, status: &mut SimStatus) {
@@ -645,7 +689,12 @@ impl Runner {
                 // Keep the relaxed state for Reset (one readback on the GPU, once per scenario).
                 if relaxed && self.relaxed.is_none() {
                     match rs.sim.snapshot() {
-                        Ok(snap) => self.relaxed = Some(Box::new((snap, self.patient.clone()))),
+                        Ok(snap) => {
+                            if let Some(cache) = &self.relaxed_cache {
+                                Self::keep_on_disk(cache, &self.scenario, &rs.sim, &snap, self.patient.as_ref());
+                            }
+                            self.relaxed = Some(Box::new((snap, self.patient.clone())));
+                        }
                         Err(e) => log::warn!("the relaxed state could not be kept for Reset: {e}"),
                     }
                 }
@@ -716,6 +765,28 @@ impl Runner {
         relaxed
     }
 
+    /// Writes the relaxed state to the cache on a thread of its own (compressing a large organ's state
+    /// takes a moment the simulation need not wait for).
+    fn keep_on_disk(
+        cache: &RelaxedCache,
+        scenario: &Scenario,
+        sim: &Simulation,
+        snap: &crate::sim::snapshot::Snapshot,
+        patient: Option<&crate::sim::physiology::Patient>,
+    ) {
+        let (cache, scenario, snap, patient) = (cache.clone(), scenario.clone(), snap.clone(), patient.cloned());
+        let engine = crate::replay::relaxed_cache::Engine::of(sim);
+        let spawned = std::thread::Builder::new().name("relaxed-cache".into()).spawn(move || {
+            match cache.store(&scenario, &engine, &snap, patient.as_ref()) {
+                Ok(f) => log::info!("relaxed state kept in {} for the next launch", f.display()),
+                Err(e) => log::warn!("{e}"),
+            }
+        });
+        if let Err(e) = spawned {
+            log::warn!("the relaxed state is not kept for the next launch: {e}");
+        }
+    }
+
     /// Reset of a live run whose relaxation has been kept: the simulation goes back to that state (the
     /// recording, if any, ends as on every reset; one started later begins with a keyframe of it).
     /// Returns false when there is none to restore or restoring failed: the caller then rebuilds.
@@ -739,6 +810,10 @@ impl Runner {
         self.patient = patient;
         let sim = &rs.sim;
         let (n_liquid, n_solid) = sim.particle_counts();
+        let (publishes, relaxed_from) = {
+            let st = lock(&self.shared.status);
+            (st.publishes, st.relaxed_from.clone())
+        };
         let status = SimStatus {
             scenario: self.scenario.name.clone(),
             backend: sim.backend_name(),
@@ -749,7 +824,8 @@ impl Runner {
             n_solid,
             paused: self.paused,
             pace: self.pace,
-            publishes: lock(&self.shared.status).publishes,
+            publishes,
+            relaxed_from,
             ..Default::default()
         };
         *lock(&self.shared.status) = status;
@@ -862,6 +938,10 @@ pub struct Start {
     pub record: Option<std::path::PathBuf>,
     /// Replay this recording instead (its own scenario).
     pub replay: Option<Recording>,
+    /// Keep relaxed states here between launches and start from them (`replay::relaxed_cache`).
+    pub relaxed_cache: Option<RelaxedCache>,
+    /// Relax live even when a relaxed state is cached (the new one replaces it).
+    pub fresh_relaxation: bool,
 }
 
 /// Starts the simulation thread on `scenario`; the simulation runs on the GPU of `ctx` when
@@ -875,7 +955,8 @@ pub fn spawn(
     rx: Receiver<Control>,
     shared: Arc<Shared>,
 ) -> std::io::Result<std::thread::JoinHandle<()>> {
-    spawn_with(ctx, Start { use_gpu, scenario, paused, record, replay: None }, rx, shared)
+    let start = Start { use_gpu, scenario, paused, record, replay: None, relaxed_cache: None, fresh_relaxation: false };
+    spawn_with(ctx, start, rx, shared)
 }
 
 /// Starts the simulation thread as `start` says.
@@ -905,6 +986,8 @@ pub fn spawn_with(
         paused: start.paused,
         relax_end: None,
         relaxed: None,
+        relaxed_cache: start.relaxed_cache,
+        fresh_relaxation: start.fresh_relaxation,
         pace: None,
         next_batch_at: None,
         batch: 1,

@@ -293,6 +293,12 @@ pub fn panels(
                 row(ui, "back-end", status.backend.clone());
                 row(ui, "particles", format!("{} solid + {} liquid", status.n_solid, status.n_liquid));
                 row(ui, "sim time", format!("{:.5} s{}", status.t, if status.relaxing { " (relaxing)" } else { "" }));
+                if let Some(f) = &status.relaxed_from {
+                    ui.label("relaxation");
+                    ui.label("kept from an earlier launch")
+                        .on_hover_text(format!("{f}\n(`perfuse --fresh-relaxation` relaxes the organ again)"));
+                    ui.end_row();
+                }
                 row(ui, "steps", status.steps.to_string());
                 row(ui, "Δt", format!("{:.3e} s ({})", status.dt, status.dt_limit));
                 row(ui, "steps/s", format!("{:.1}", status.steps_per_s));

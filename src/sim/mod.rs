@@ -615,6 +615,18 @@ impl Simulation {
         }
     }
 
+    /// The GPU adapter with its driver ("" on the CPU): with [`Simulation::backend_name`], what decides
+    /// a GPU run's rounding.
+    pub fn adapter_name(&self) -> String {
+        match &self.engine {
+            Engine::Cpu(_) => String::new(),
+            Engine::Gpu(g) => {
+                let i = &g.ctx.info;
+                format!("{} ({} {})", i.name, i.driver, i.driver_info).trim_end_matches(" ( )").to_string()
+            }
+        }
+    }
+
     /// A keyframe of everything that evolves (a readback on the GPU): see [`snapshot`].
     pub fn snapshot(&mut self) -> Result<snapshot::Snapshot, SimError> {
         let data = match &self.engine {
