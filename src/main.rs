@@ -364,6 +364,7 @@ fn render_command(
         }
     };
     let sc = Scenario::load_with_overrides(scenario, set)?;
+    print_warnings(&sc);
     let ctx = GpuContext::new().context("rendering needs a GPU adapter (or the lavapipe software adapter)")?;
     let kind: BackendKind = backend.into();
     let mut sim = Simulation::with_gpu(&sc, (kind == BackendKind::Gpu).then(|| ctx.clone()))?;
@@ -458,6 +459,14 @@ fn print_session(m: Option<&perfuse::analysis::session::SessionReport>) {
     );
 }
 
+/// The scenario's non-fatal notes (`scenario::warnings`: a box edge a hair short of a layer), on
+/// stderr before the work starts.
+fn print_warnings(sc: &Scenario) {
+    for w in perfuse::scenario::warnings(sc) {
+        eprintln!("warning: scenario `{}`, {w}", sc.name);
+    }
+}
+
 /// The viewer on `cli.scenario`.
 fn viewer(cli: &Cli) -> Result<()> {
     let path = if cli.scenario.is_relative() && !cli.scenario.exists() {
@@ -467,6 +476,7 @@ fn viewer(cli: &Cli) -> Result<()> {
         cli.scenario.clone()
     };
     let scenario = Scenario::load(&path)?;
+    print_warnings(&scenario);
     let gpu_simulation = match cli.backend {
         Backend::Auto => None,
         Backend::Cpu => Some(false),
@@ -643,6 +653,12 @@ fn real_main() -> Result<()> {
                     bail!("{name} {v}: give seconds in 0..86400");
                 }
             }
+            if loss > 0.0 && over <= 0.0 {
+                bail!("--over {over}: the loss is removed at a constant rate over this time; give it in seconds > 0");
+            }
+            if duration <= 0.0 {
+                bail!("--duration {duration}: give the simulated time in seconds > 0");
+            }
             let samples = hemorrhage::scripted_hemorrhage(Default::default(), loss, start, over, duration, 0.5)?;
             hemorrhage::write_outputs(&samples, &out).map_err(anyhow::Error::msg)?;
             let windows = hemorrhage::pulse_windows(Default::default(), loss, start, over, duration)?;
@@ -671,6 +687,7 @@ fn real_main() -> Result<()> {
         }
         Cmd::Run { scenario, backend, until, steps, out, set, vtk } => {
             let sc = Scenario::load_with_overrides(&scenario, &set)?;
+            print_warnings(&sc);
             if let Some(t) = until
                 && !(t.is_finite() && t > 0.0)
             {
@@ -709,7 +726,11 @@ fn real_main() -> Result<()> {
                 bail!("--seconds must be a positive, finite number of seconds, got {seconds}");
             }
             let scenarios: Vec<perfuse::scenario::Scenario> = match &scenario {
-                Some(path) => vec![Scenario::load_with_overrides(path, &set)?],
+                Some(path) => {
+                    let sc = Scenario::load_with_overrides(path, &set)?;
+                    print_warnings(&sc);
+                    vec![sc]
+                }
                 None => {
                     if sizes.is_empty() || sizes.iter().any(|n| !(16..=20_000_000).contains(n)) {
                         bail!("--sizes must list particle counts between 16 and 20000000");

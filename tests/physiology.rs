@@ -83,3 +83,23 @@ fn no_wound_no_loss() {
     assert!(outside < 0.02 * total, "blood inside perfused tissue is not lost: {outside} of {total} m³");
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// `perfuse vitals` refuses a bleeding time of zero (the loss is a rate over it, so nothing would be
+/// lost) and a zero duration, naming the option, before writing anything.
+#[test]
+fn vitals_refuses_a_zero_bleeding_time_or_duration() {
+    let out = std::env::temp_dir().join(format!("perfuse-vitals-args-{}", std::process::id()));
+    for (args, named) in [(["--over", "0"], "--over 0"), (["--duration", "0"], "--duration 0")] {
+        let r = std::process::Command::new(env!("CARGO_BIN_EXE_perfuse"))
+            .arg("vitals")
+            .args(args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .expect("binary runs");
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success(), "{args:?} accepted");
+        assert!(stderr.contains(named) && stderr.contains("seconds > 0"), "{stderr}");
+        assert!(!stderr.contains("panicked") && !out.exists(), "{stderr}");
+    }
+}

@@ -324,19 +324,23 @@ fn missing_file_is_an_io_error() {
     assert!(e.contains("/nonexistent/x.ron") && e.contains("cannot read"), "{e}");
 }
 
-/// Every shipped scenario parses and validates.
+/// Every shipped scenario parses and validates, without a warning.
 #[test]
 fn shipped_scenarios_are_valid() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios");
     let mut n = 0;
+    let mut warned = Vec::new();
     for entry in std::fs::read_dir(&dir).expect("assets/scenarios") {
         let path = entry.expect("entry").path();
         if path.extension().is_some_and(|e| e == "ron") {
-            Scenario::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            let sc = Scenario::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            let name = path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+            warned.extend(perfuse::scenario::warnings(&sc).into_iter().map(|w| format!("{name}: {w}")));
             n += 1;
         }
     }
     assert!(n >= 5, "expected the validation scenarios, found {n}");
+    assert!(warned.is_empty(), "{warned:#?}");
 }
 
 /// The liver's moulded bed (`Boundary::mould`): a negative clearance, a bed without gravity (no
@@ -628,4 +632,36 @@ fn outlet_inputs() {
     expect(&with_both(&outlet(buffer, "-100.0", "(0.0, 0.0, 0.0)"), sink), &["outlets[0].normal", "direction"]);
     expect(&with_both(&outlet(buffer, "-200.0", "(0.0, 1.0, 0.0)"), sink), &["outlets[0].pressure", "stiffness"]);
     expect(&edit("dt_max: 1e-3)", "dt_max: 1e-3, ambient_pressure: Some(-1.0))"), &["numerics.ambient_pressure", "Pa"]);
+}
+
+/// A box edge a hair short of a whole number of spacings (`scenario::warnings`): the generator
+/// fills ⌊extent/Δx⌋ layers, so 0.0999 m at Δx = 0.01 m gives 9 layers where 10 were meant — a
+/// warning naming the box, the axis and the extent that gives the layers meant; a wall alike; an
+/// exact edge, or one deliberately half a spacing short, gives none.
+#[test]
+fn a_box_a_hair_short_of_a_layer_is_warned_about() {
+    let base = r#"Scenario(
+    name: "slip",
+    dimensions: 2,
+    domain: Domain(min: (-0.05, -0.05, 0.0), max: (0.15, 0.15, 0.0)),
+    liquid: Some(Liquid(density: 1000.0, viscosity: 0.001, sound_speed: Some(10.0))),
+    numerics: Numerics(dx_liquid: Some(0.01)),
+    particles: [ Box(phase: Liquid, min: (0.0, 0.0, 0.0), max: (XMAX, 0.05, 0.0), fraction: 1.0) ],
+    boundaries: [ Boundary(name: "floor", shape: Box(min: (-0.03, -0.03, 0.0), max: (0.13, WALL, 0.0))) ],
+    duration: 0.01,
+)"#;
+    let load = |xmax: &str, wall: &str| {
+        Scenario::from_str_named(&base.replace("XMAX", xmax).replace("WALL", wall), "slip.ron").expect("valid")
+    };
+    assert!(perfuse::scenario::warnings(&load("0.1", "0.0")).is_empty(), "exact edges");
+    assert!(perfuse::scenario::warnings(&load("0.095", "-0.005")).is_empty(), "half a spacing short is meant");
+    let w = perfuse::scenario::warnings(&load("0.0999", "-0.0001"));
+    assert_eq!(w.len(), 2, "{w:#?}");
+    assert!(
+        w[0].starts_with("particles[0]") && w[0].contains("along x") && w[0].contains("9 layers, not 10"),
+        "{}",
+        w[0]
+    );
+    assert!(w[0].contains("= 0.1 m for 10"), "gives the extent for the layers meant: {}", w[0]);
+    assert!(w[1].starts_with("boundaries[0] `floor`") && w[1].contains("along y"), "{}", w[1]);
 }

@@ -16,7 +16,7 @@ pub use generate::{
     cantilever_mode, generate, lattice_points, motion_at,
 };
 pub use schema::*;
-pub use validate::{MAX_OUTLETS, MAX_TENSION_REGIONS};
+pub use validate::{MAX_OUTLETS, MAX_TENSION_REGIONS, warnings};
 
 use std::path::Path;
 
