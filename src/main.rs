@@ -192,6 +192,10 @@ enum Cmd {
         /// time — the renderer's cost at --size.
         #[arg(long, value_name = "N")]
         timing: Option<u32>,
+        /// Relax the scenario even when this build has kept its relaxed state (as the viewer does; the
+        /// new state replaces the kept one).
+        #[arg(long)]
+        fresh_relaxation: bool,
     },
     /// Dynamic mode decomposition of the frames of a `perfuse run` (thesis ch. 5): plots and dmd.json.
     Dmd {
@@ -337,6 +341,7 @@ fn render_command(
     no_fluid: bool,
     set: &[String],
     timing: Option<u32>,
+    fresh_relaxation: bool,
 ) -> Result<()> {
     use perfuse::render::{Renderer, snapshot};
     use perfuse::sim::Simulation;
@@ -369,7 +374,15 @@ fn render_command(
     let kind: BackendKind = backend.into();
     let mut sim = Simulation::with_gpu(&sc, (kind == BackendKind::Gpu).then(|| ctx.clone()))?;
     let bar = perfuse::output::progress_bar();
-    sim.relax(|_| bar.tick())?;
+    // the relaxed state the viewer or an earlier render kept, if this build has one (bit for bit the same)
+    let cache = perfuse::replay::relaxed_cache::RelaxedCache::user_default();
+    let kept =
+        perfuse::replay::relaxed_cache::relax_with_cache(cache.as_ref(), fresh_relaxation, &sc, &mut sim, |_| {
+            bar.tick()
+        })?;
+    if let Some(f) = kept {
+        bar.suspend(|| eprintln!("relaxed state from {} (--fresh-relaxation relaxes again)", f.display()));
+    }
     let mut renderer = Renderer::new(&ctx.device, &ctx.queue)?;
     renderer.settings.field = field;
     renderer.settings.field_scale = field.default_scale();
@@ -681,9 +694,34 @@ fn real_main() -> Result<()> {
             println!("wrote vitals.csv, vitals.png, hepatic_inflow.png, hepatic_pulse.png to {}", out.display());
             Ok(())
         }
-        Cmd::Render { scenario, at, out, every, until, size, backend, field, no_fluid, set, timing } => {
+        Cmd::Render {
+            scenario,
+            at,
+            out,
+            every,
+            until,
+            size,
+            backend,
+            field,
+            no_fluid,
+            set,
+            timing,
+            fresh_relaxation,
+        } => {
             let sequence = every.zip(until);
-            render_command(&scenario, at, sequence, &out, &size, backend, &field, no_fluid, &set, timing)
+            render_command(
+                &scenario,
+                at,
+                sequence,
+                &out,
+                &size,
+                backend,
+                &field,
+                no_fluid,
+                &set,
+                timing,
+                fresh_relaxation,
+            )
         }
         Cmd::Run { scenario, backend, until, steps, out, set, vtk } => {
             let sc = Scenario::load_with_overrides(&scenario, &set)?;

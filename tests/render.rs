@@ -220,6 +220,7 @@ fn render_cli(test: &str, dir_name: &str, args: &[&str], png: &str) -> Option<(s
     let scene = dir.join("scene.ron");
     std::fs::write(&scene, SCENE).expect("scene");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_perfuse"))
+        .env("PERFUSE_CACHE_DIR", "") // no relaxed state kept in the user's cache by a test
         .arg("render")
         .arg(&scene)
         .args(["--backend", "cpu", "--size", "64x48"])
@@ -280,4 +281,46 @@ fn render_timing_prints_every_pass() {
         }
         assert!(ms("scene") > 0.0, "{stdout}");
     }
+}
+
+/// `perfuse render` shares the viewer's cache of relaxed states (`replay::relaxed_cache`): the first
+/// render of a scenario with a relaxation keeps the relaxed state, the second starts from it (and
+/// says so) and writes the same image byte for byte; `--fresh-relaxation` relaxes again, alike.
+#[test]
+fn render_reuses_the_kept_relaxed_state() {
+    if std::env::var("PERFUSE_SKIP_GPU_TESTS").is_ok_and(|v| v == "1") {
+        eprintln!("\n!!!!!!!! PERFUSE_SKIP_GPU_TESTS=1: SKIPPING `render_reuses_the_kept_relaxed_state` !!!!!!!!\n");
+        return;
+    }
+    let dir = artifact("render_relaxed_cache");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("dir");
+    let scene = dir.join("scene.ron");
+    std::fs::write(&scene, SCENE).expect("scene");
+    let render = |png: &str, fresh: bool| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_perfuse"))
+            .env("PERFUSE_CACHE_DIR", dir.join("cache"))
+            .arg("render")
+            .arg(&scene)
+            .args(["--backend", "cpu", "--size", "64x48", "--at", "2e-5"])
+            .args(["--set", "relaxation=Some(Relaxation(duration: 4e-5, damping: 20.0, gravity_solid_only: true))"])
+            .args(if fresh { &["--fresh-relaxation"][..] } else { &[] })
+            .arg("--out")
+            .arg(dir.join(png))
+            .output()
+            .expect("run perfuse");
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{stderr}");
+        (std::fs::read(dir.join(png)).expect("png"), stderr)
+    };
+    let (first, e1) = render("first.png", false);
+    assert!(!e1.contains("relaxed state from"), "nothing was kept yet: {e1}");
+    let kept: Vec<_> = std::fs::read_dir(dir.join("cache")).expect("cache written").filter_map(Result::ok).collect();
+    assert_eq!(kept.len(), 1, "one relaxed state kept");
+    let (second, e2) = render("second.png", false);
+    assert!(e2.contains("relaxed state from") && e2.contains("render_test-"), "{e2}");
+    assert!(first == second, "the same image from the kept state");
+    let (third, e3) = render("third.png", true);
+    assert!(!e3.contains("relaxed state from"), "{e3}");
+    assert!(first == third, "and from a fresh relaxation");
 }

@@ -338,6 +338,17 @@ fn a_second_launch_starts_from_the_kept_relaxed_state() {
         }
         tx.send(Control::Quit).expect("send");
         handle.join().expect("thread ends");
+        // the kept state is the one a headless relaxation (`Simulation::relax`) reaches, bit for bit
+        let mut kept = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+        cache.restore(&sc, &mut kept).expect("readable").expect("kept");
+        let mut headless = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
+        headless.relax(|_| {}).expect("relax");
+        assert_eq!(kept.stats().steps, headless.stats().steps);
+        assert_eq!(
+            kept.read_state().expect("state").hash(),
+            headless.read_state().expect("state").hash(),
+            "the viewer's live relaxation and a headless one end in the same state"
+        );
 
         // second launch, recording: starts at t = 0 from the kept state
         let rec_path = dir.join("from-cache.pfrec");

@@ -203,3 +203,38 @@ pub fn build_id() -> u64 {
     static ID: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
     *ID.get_or_init(|| std::env::current_exe().and_then(std::fs::read).map_or(0, |b| fnv1a64(&b)))
 }
+
+/// Relaxes `sim` (built from `scenario`, not yet stepped) as [`Simulation::relax`] does — or, unless
+/// `fresh`, restores the state an earlier relaxation of the same scenario on the same engine reached
+/// from `cache`, and keeps a new one there after relaxing. Returns the file restored from. A cache
+/// that cannot be read or written is logged and otherwise changes nothing: the relaxation runs.
+pub fn relax_with_cache(
+    cache: Option<&RelaxedCache>,
+    fresh: bool,
+    scenario: &Scenario,
+    sim: &mut Simulation,
+    progress: impl FnMut(f64),
+) -> Result<Option<PathBuf>, crate::sim::SimError> {
+    let relaxes = scenario.relaxation.as_ref().is_some_and(|r| r.duration > 0.0);
+    let Some(cache) = cache.filter(|_| relaxes) else {
+        sim.relax(progress)?;
+        return Ok(None);
+    };
+    if !fresh {
+        match cache.restore(scenario, sim) {
+            Ok(Some(r)) => return Ok(Some(r.file)),
+            Ok(None) => {}
+            Err(e) => log::warn!("{e}"),
+        }
+    }
+    sim.relax(progress)?;
+    let kept = sim
+        .snapshot()
+        .map_err(|e| e.to_string())
+        .and_then(|snap| cache.store(scenario, &Engine::of(sim), &snap, None).map_err(|e| e.to_string()));
+    match kept {
+        Ok(f) => log::info!("relaxed state kept in {}", f.display()),
+        Err(e) => log::warn!("the relaxed state is not kept: {e}"),
+    }
+    Ok(None)
+}
