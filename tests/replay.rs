@@ -409,6 +409,15 @@ fn a_cached_relaxed_state_restores_the_relaxation_bit_for_bit() {
     let kept = std::fs::read_dir(&dir).expect("dir").filter_map(Result::ok).count();
     assert_eq!(kept, KEEP, "only the newest {KEEP} are kept");
     assert!(!file.exists(), "the oldest went first");
+    // a writer that died before its rename leaves NAME.tmpPID: removed once it is an hour old
+    let (stale, fresh) = (dir.join("dead.tmp12345"), dir.join("busy.tmp678"));
+    for f in [&stale, &fresh] {
+        std::fs::write(f, b"partial").expect("write");
+    }
+    let two_hours_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(7200);
+    std::fs::File::options().write(true).open(&stale).expect("open").set_modified(two_hours_ago).expect("mtime");
+    cache.store(&sc, &Engine::of(&a), &snap, None).expect("stored");
+    assert!(!stale.exists() && fresh.exists(), "stale temporary removed, a fresh one left alone");
     eprintln!("relaxed cache: {relaxed_steps} relaxation steps skipped, {} bytes per state", bytes.len());
     let _ = std::fs::remove_dir_all(&dir);
 }

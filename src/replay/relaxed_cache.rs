@@ -182,19 +182,32 @@ impl RelaxedCache {
 
     /// Removes the oldest cached states beyond [`KEEP`] (never `keep`); failures are ignored (a
     /// cache that grows is not an error).
+    /// Also removes temporary files more than an hour old (a writer that died before its rename).
     fn prune(&self, keep: &Path) {
         let Ok(entries) = std::fs::read_dir(&self.dir) else { return };
-        let mut files: Vec<(std::time::SystemTime, PathBuf)> = entries
+        let dated = |p: PathBuf| Some((std::fs::metadata(&p).ok()?.modified().ok()?, p));
+        let (mut files, temporary): (Vec<_>, Vec<_>) = entries
             .filter_map(Result::ok)
             .map(|e| e.path())
-            .filter(|p| p.extension().is_some_and(|x| x == "pfrec") && p != keep)
-            .filter_map(|p| Some((std::fs::metadata(&p).ok()?.modified().ok()?, p)))
-            .collect();
+            .filter(|p| p != keep)
+            .filter_map(dated)
+            .partition(|(_, p)| p.extension().is_some_and(|x| x == "pfrec"));
         files.sort_by_key(|f| std::cmp::Reverse(f.0));
         for (_, p) in files.iter().skip(KEEP.saturating_sub(1)) {
             let _ = std::fs::remove_file(p);
         }
+        let stale = |t: &std::time::SystemTime| t.elapsed().is_ok_and(|age| age.as_secs() > 3600);
+        for (_, p) in temporary.iter().filter(|(t, p)| stale(t) && is_temporary(p)) {
+            let _ = std::fs::remove_file(p);
+        }
     }
+}
+
+/// A file [`RelaxedCache::store`] writes before renaming it (`NAME.tmpPID`).
+fn is_temporary(p: &Path) -> bool {
+    p.extension()
+        .and_then(|x| x.to_str())
+        .is_some_and(|x| x.starts_with("tmp") && x[3..].bytes().all(|b| b.is_ascii_digit()))
 }
 
 /// FNV-1a 64 of the running executable's bytes (read once per process); 0 when it cannot be read, so
