@@ -284,103 +284,111 @@ fn replay_mode_seeks_and_takes_over_with_a_branch() {
 /// keeps the state at t = 0 on disk; the next launch of the same scenario starts there — at t = 0
 /// with the relaxation's steps counted, not relaxing, the panel naming the kept file — and a
 /// recording made by it starts with a keyframe of that state and replays with every hash equal;
-/// `--fresh-relaxation` relaxes live again.
+/// `--fresh-relaxation` relaxes live again. Both back-ends.
 #[test]
 fn a_second_launch_starts_from_the_kept_relaxed_state() {
+    gpu_test("a_second_launch_starts_from_the_kept_relaxed_state", |ctx| {
+        for use_gpu in [false, true] {
+            second_launch(ctx.clone(), use_gpu);
+        }
+    });
+}
+
+fn second_launch(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
     use perfuse::app::sim_thread::{Start, spawn_with};
     use perfuse::replay::format::{ChunkKind, read_recording_file};
     use perfuse::replay::relaxed_cache::{Engine, RelaxedCache};
     use perfuse::replay::session::replay;
     use perfuse::sim::{BackendKind, Simulation};
-    gpu_test("a_second_launch_starts_from_the_kept_relaxed_state", |ctx| {
-        let dir = std::env::temp_dir().join(format!("perfuse-relaxed-launch-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        let cache = RelaxedCache::new(dir.join("cache"));
-        let sc = common::scenes::perfused_block()
-            .with_override("relaxation=Some(Relaxation(duration: 4e-5, damping: 20.0, gravity_solid_only: true))")
-            .expect("valid");
-        let file = cache.path_for(&sc, &Engine::of(&Simulation::new(&sc, BackendKind::Cpu).expect("sim")));
-        let launch = |fresh: bool, record: Option<std::path::PathBuf>| {
-            let (tx, rx) = std::sync::mpsc::channel();
-            let shared = Arc::new(Shared::default());
-            let start = Start {
-                use_gpu: false,
-                scenario: sc.clone(),
-                paused: true,
-                record,
-                replay: None,
-                relaxed_cache: Some(cache.clone()),
-                fresh_relaxation: fresh,
-            };
-            let handle = spawn_with(ctx.clone(), start, rx, shared.clone()).expect("thread");
-            wait_for(&shared, "first publish", |s| s.publishes >= 1);
-            (tx, shared, handle)
+    let dir = std::env::temp_dir().join(format!("perfuse-relaxed-launch-{}-{use_gpu}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let cache = RelaxedCache::new(dir.join("cache"));
+    let sc = common::scenes::perfused_block()
+        .with_override("relaxation=Some(Relaxation(duration: 4e-5, damping: 20.0, gravity_solid_only: true))")
+        .expect("valid");
+    let build = || Simulation::with_gpu(&sc, use_gpu.then(|| ctx.clone())).expect("sim");
+    let file = cache.path_for(&sc, &Engine::of(&build()));
+    let launch = |fresh: bool, record: Option<std::path::PathBuf>| {
+        let (tx, rx) = std::sync::mpsc::channel();
+        let shared = Arc::new(Shared::default());
+        let start = Start {
+            use_gpu,
+            scenario: sc.clone(),
+            paused: true,
+            record,
+            replay: None,
+            relaxed_cache: Some(cache.clone()),
+            fresh_relaxation: fresh,
         };
-        // first launch: relaxes live, step by step, and keeps the state
-        let (tx, shared, handle) = launch(false, None);
-        assert!(lock(&shared.status).relaxed_from.is_none());
-        let mut k = 0;
-        let steps_relaxed = loop {
-            k += 1;
-            assert!(k < 50, "the relaxation does not end");
-            tx.send(Control::Step).expect("send");
-            let st = wait_for(&shared, "one step", |s| s.steps == k);
-            assert!(k > 1 || st.relaxing, "the first launch relaxes: {st:?}");
-            std::thread::sleep(Duration::from_millis(50));
-            if !lock(&shared.status).relaxing {
-                break k;
-            }
-        };
-        let start = Instant::now();
-        while !file.exists() {
-            assert!(start.elapsed() < Duration::from_secs(60), "{} was not written", file.display());
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        tx.send(Control::Quit).expect("send");
-        handle.join().expect("thread ends");
-        // the kept state is the one a headless relaxation (`Simulation::relax`) reaches, bit for bit
-        let mut kept = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
-        cache.restore(&sc, &mut kept).expect("readable").expect("kept");
-        let mut headless = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
-        headless.relax(|_| {}).expect("relax");
-        assert_eq!(kept.stats().steps, headless.stats().steps);
-        assert_eq!(
-            kept.read_state().expect("state").hash(),
-            headless.read_state().expect("state").hash(),
-            "the viewer's live relaxation and a headless one end in the same state"
-        );
-
-        // second launch, recording: starts at t = 0 from the kept state
-        let rec_path = dir.join("from-cache.pfrec");
-        let (tx, shared, handle) = launch(false, Some(rec_path.clone()));
-        let st = lock(&shared.status).clone();
-        assert_eq!(st.steps, steps_relaxed, "{st:?}");
-        assert!(st.t.abs() < 1e-12 && !st.relaxing && st.error.is_none(), "{st:?}");
-        assert_eq!(st.relaxed_from.as_deref(), Some(file.display().to_string().as_str()));
-        for _ in 0..3 {
-            tx.send(Control::Step).expect("send");
-        }
-        let on = wait_for(&shared, "three steps", |s| s.steps == steps_relaxed + 3);
-        assert!(on.t > 0.0 && !on.relaxing, "{on:?}");
-        tx.send(Control::Quit).expect("send");
-        handle.join().expect("thread ends");
-        let rec = read_recording_file(&rec_path).expect("recording");
-        assert!(rec.is_clean(), "{:?}", rec.warnings);
-        assert_eq!(rec.chunks.first().map(|c| (c.kind, c.step)), Some((ChunkKind::Keyframe, steps_relaxed)));
-        let out = replay(&rec, BackendKind::Cpu, true).expect("replays");
-        assert!(out.hashes_checked >= 1 && out.mismatches.is_empty(), "{out:?}");
-        assert_eq!(out.steps, steps_relaxed + 3);
-
-        // --fresh-relaxation: relaxes live again
-        let (tx, shared, handle) = launch(true, None);
-        let st = lock(&shared.status).clone();
-        assert!(st.steps == 0 && st.relaxed_from.is_none(), "{st:?}");
+        let handle = spawn_with(ctx.clone(), start, rx, shared.clone()).expect("thread");
+        wait_for(&shared, "first publish", |s| s.publishes >= 1);
+        (tx, shared, handle)
+    };
+    // first launch: relaxes live, step by step, and keeps the state
+    let (tx, shared, handle) = launch(false, None);
+    assert!(lock(&shared.status).relaxed_from.is_none());
+    let mut k = 0;
+    let steps_relaxed = loop {
+        k += 1;
+        assert!(k < 50, "the relaxation does not end");
         tx.send(Control::Step).expect("send");
-        let st = wait_for(&shared, "one step", |s| s.steps == 1);
-        assert!(st.relaxing && st.t < 0.0, "{st:?}");
-        tx.send(Control::Quit).expect("send");
-        handle.join().expect("thread ends");
-        eprintln!("relaxed cache: the second launch skipped {steps_relaxed} relaxation steps ({})", file.display());
-        let _ = std::fs::remove_dir_all(&dir);
-    });
+        let st = wait_for(&shared, "one step", |s| s.steps == k);
+        assert!(k > 1 || st.relaxing, "the first launch relaxes: {st:?}");
+        std::thread::sleep(Duration::from_millis(50));
+        if !lock(&shared.status).relaxing {
+            break k;
+        }
+    };
+    let start = Instant::now();
+    while !file.exists() {
+        assert!(start.elapsed() < Duration::from_secs(60), "{} was not written", file.display());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    tx.send(Control::Quit).expect("send");
+    handle.join().expect("thread ends");
+    // the kept state is the one a headless relaxation (`Simulation::relax`) reaches, bit for bit
+    let mut kept = build();
+    cache.restore(&sc, &mut kept).expect("readable").expect("kept");
+    let mut headless = build();
+    headless.relax(|_| {}).expect("relax");
+    assert_eq!(kept.stats().steps, headless.stats().steps);
+    assert_eq!(
+        kept.read_state().expect("state").hash(),
+        headless.read_state().expect("state").hash(),
+        "the viewer's live relaxation and a headless one end in the same state"
+    );
+
+    // second launch, recording: starts at t = 0 from the kept state
+    let rec_path = dir.join("from-cache.pfrec");
+    let (tx, shared, handle) = launch(false, Some(rec_path.clone()));
+    let st = lock(&shared.status).clone();
+    assert_eq!(st.steps, steps_relaxed, "{st:?}");
+    assert!(st.t.abs() < 1e-12 && !st.relaxing && st.error.is_none(), "{st:?}");
+    assert_eq!(st.relaxed_from.as_deref(), Some(file.display().to_string().as_str()));
+    for _ in 0..3 {
+        tx.send(Control::Step).expect("send");
+    }
+    let on = wait_for(&shared, "three steps", |s| s.steps == steps_relaxed + 3);
+    assert!(on.t > 0.0 && !on.relaxing, "{on:?}");
+    tx.send(Control::Quit).expect("send");
+    handle.join().expect("thread ends");
+    let rec = read_recording_file(&rec_path).expect("recording");
+    assert!(rec.is_clean(), "{:?}", rec.warnings);
+    assert_eq!(rec.chunks.first().map(|c| (c.kind, c.step)), Some((ChunkKind::Keyframe, steps_relaxed)));
+    let backend = if use_gpu { BackendKind::Gpu } else { BackendKind::Cpu };
+    let out = replay(&rec, backend, true).expect("replays");
+    assert!(out.hashes_checked >= 1 && out.mismatches.is_empty(), "{out:?}");
+    assert_eq!(out.steps, steps_relaxed + 3);
+
+    // --fresh-relaxation: relaxes live again
+    let (tx, shared, handle) = launch(true, None);
+    let st = lock(&shared.status).clone();
+    assert!(st.steps == 0 && st.relaxed_from.is_none(), "{st:?}");
+    tx.send(Control::Step).expect("send");
+    let st = wait_for(&shared, "one step", |s| s.steps == 1);
+    assert!(st.relaxing && st.t < 0.0, "{st:?}");
+    tx.send(Control::Quit).expect("send");
+    handle.join().expect("thread ends");
+    eprintln!("relaxed cache: the second launch skipped {steps_relaxed} relaxation steps ({})", file.display());
+    let _ = std::fs::remove_dir_all(&dir);
 }
