@@ -284,7 +284,8 @@ fn replay_mode_seeks_and_takes_over_with_a_branch() {
 /// keeps the state at t = 0 on disk; the next launch of the same scenario starts there — at t = 0
 /// with the relaxation's steps counted, not relaxing, the panel naming the kept file — and a
 /// recording made by it starts with a keyframe of that state and replays with every hash equal;
-/// `--fresh-relaxation` relaxes live again. Both back-ends.
+/// `--fresh-relaxation` relaxes live again; a run whose tool was moved while it relaxed keeps nothing.
+/// Both back-ends.
 #[test]
 fn a_second_launch_starts_from_the_kept_relaxed_state() {
     gpu_test("a_second_launch_starts_from_the_kept_relaxed_state", |ctx| {
@@ -389,6 +390,35 @@ fn second_launch(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
     assert!(st.relaxing && st.t < 0.0, "{st:?}");
     tx.send(Control::Quit).expect("send");
     handle.join().expect("thread ends");
+    // a run the user changed while it relaxed (the tool moved) keeps nothing: its state is not the
+    // scenario's relaxed state
+    let cache2 = RelaxedCache::new(dir.join("cache2"));
+    let (tx, rx) = std::sync::mpsc::channel();
+    let shared = Arc::new(Shared::default());
+    let start = Start {
+        use_gpu,
+        scenario: sc.clone(),
+        paused: true,
+        record: None,
+        replay: None,
+        relaxed_cache: Some(cache2.clone()),
+        fresh_relaxation: false,
+    };
+    let handle = spawn_with(ctx.clone(), start, rx, shared.clone()).expect("thread");
+    wait_for(&shared, "first publish", |s| s.publishes >= 1);
+    tx.send(Control::Step).expect("send");
+    wait_for(&shared, "one step", |s| s.steps == 1 && s.relaxing);
+    tx.send(Control::Sim(Command::PlaceObject { object: 1, position: [0.0035, 0.003, 0.0055] })).expect("send");
+    for k in 2..=steps_relaxed + 1 {
+        tx.send(Control::Step).expect("send");
+        wait_for(&shared, "a step", |s| s.steps == k);
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(!lock(&shared.status).relaxing, "the relaxation ended");
+    tx.send(Control::Quit).expect("send");
+    handle.join().expect("thread ends");
+    assert!(!cache2.path_for(&sc, &Engine::of(&build())).exists(), "a changed relaxation was kept");
+
     eprintln!("relaxed cache: the second launch skipped {steps_relaxed} relaxation steps ({})", file.display());
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -231,6 +231,9 @@ struct Runner {
     relaxed_cache: Option<RelaxedCache>,
     /// Relax live even when a relaxed state is cached (and replace it).
     fresh_relaxation: bool,
+    /// A command changed the live run while it relaxed (a tool moved, gravity changed): its relaxed
+    /// state is then not the scenario's, and is not kept on disk.
+    commanded_while_relaxing: bool,
     batch: u32,
     rate: RateMeter,
     /// `Control::Pace`: the live run's cap on simulated seconds per wall second.
@@ -321,6 +324,7 @@ impl Runner {
         // The scenario's damped relaxation runs live, before t = 0 (SPEC §7.5), unless this build has
         // kept the state it reaches (a recording then starts with a keyframe of it).
         self.relax_end = None;
+        self.commanded_while_relaxing = false;
         if let Some(restored) = self.restore_cached(&mut sim.sim) {
             status.relaxed_from = Some(restored.file.display().to_string());
             if restored.patient.is_some() {
@@ -541,6 +545,7 @@ impl Runner {
             Control::Sim(cmd) => match &mut self.sim {
                 Some(Mode::Live(sim)) => {
                     let r = sim.apply(&cmd);
+                    self.commanded_while_relaxing |= r.is_ok() && self.relax_end.is_some();
                     let mut st = lock(&self.shared.status);
                     st.error = r.err().map(|e| e.to_string());
                 }
@@ -690,8 +695,15 @@ impl Runner {
                 if relaxed && self.relaxed.is_none() {
                     match rs.sim.snapshot() {
                         Ok(snap) => {
-                            if let Some(cache) = &self.relaxed_cache {
-                                Self::keep_on_disk(cache, &self.scenario, &rs.sim, &snap, self.patient.as_ref());
+                            match &self.relaxed_cache {
+                                Some(_) if self.commanded_while_relaxing => log::info!(
+                                    "the relaxed state is not kept for the next launch: commands changed the run \
+                                     while it relaxed"
+                                ),
+                                Some(cache) => {
+                                    Self::keep_on_disk(cache, &self.scenario, &rs.sim, &snap, self.patient.as_ref())
+                                }
+                                None => {}
                             }
                             self.relaxed = Some(Box::new((snap, self.patient.clone())));
                         }
@@ -988,6 +1000,7 @@ pub fn spawn_with(
         relaxed: None,
         relaxed_cache: start.relaxed_cache,
         fresh_relaxation: start.fresh_relaxation,
+        commanded_while_relaxing: false,
         pace: None,
         next_batch_at: None,
         batch: 1,
