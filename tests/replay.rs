@@ -421,3 +421,38 @@ fn a_cached_relaxed_state_restores_the_relaxation_bit_for_bit() {
     eprintln!("relaxed cache: {relaxed_steps} relaxation steps skipped, {} bytes per state", bytes.len());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The relaxed-state cache's key holds the bytes of a scenario's meshes, not only their path: an
+/// edited `PerfusedMesh` file is another organ, whose state must not be restored.
+#[test]
+fn an_edited_mesh_is_another_relaxed_state() {
+    use perfuse::replay::relaxed_cache::{Engine, RelaxedCache};
+    let dir = temp("relaxed-mesh");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let cube = |b: f64| {
+        let v: Vec<String> = (0..8)
+            .map(|k| format!("v {} {} {}", [0.0, b][k & 1], [0.0, b][(k >> 1) & 1], [0.0, b][(k >> 2) & 1]))
+            .collect();
+        let faces = "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+        std::fs::write(dir.join("cube.obj"), format!("{}\n{faces}", v.join("\n"))).expect("write mesh");
+    };
+    let text = r#"Scenario(
+    name: "mesh_key", dimensions: 3,
+    domain: Domain(min: (-0.01, -0.01, -0.01), max: (0.07, 0.07, 0.07)),
+    liquid: Some(Liquid(density: 1000.0, viscosity: 0.001, sound_speed: Some(10.0))),
+    solid: Some(Solid(density: 1000.0, c10: 900.0, c01: 100.0, k_s: 2.0e4, n_sat: 0.7, k_sat: 2.0e4, friction: 1.0e6)),
+    numerics: Numerics(dx_solid: Some(0.005), dx_liquid: Some(0.005), h_over_dx: 1.3, sound_speed_solid: Some(10.0)),
+    particles: [PerfusedMesh(file: "cube.obj", solid_fraction: 0.7, liquid_fraction: 0.3)],
+    duration: 0.1,
+)"#;
+    cube(0.05);
+    let sc = perfuse::scenario::Scenario::from_str_named(text, &dir.join("mesh_key.ron").to_string_lossy())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let cache = RelaxedCache::new(dir.join("cache"));
+    let engine = Engine { backend: "cpu".into(), adapter: String::new() };
+    let before = cache.path_for(&sc, &engine);
+    assert_eq!(before, cache.path_for(&sc, &engine), "the key is stable");
+    cube(0.055);
+    assert_ne!(before, cache.path_for(&sc, &engine), "an edited mesh keys another state");
+    let _ = std::fs::remove_dir_all(&dir);
+}

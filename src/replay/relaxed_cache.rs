@@ -8,7 +8,8 @@
 //! Exactness: a relaxation is deterministic on one back-end and adapter (the state-hash tests of the
 //! replay), so a cached state is bit for bit the state the relaxation would reach again. The key is
 //! therefore everything that decides that state: the scenario's self-contained text
-//! ([`scenario_text`], `--set` overrides applied), the back-end and adapter names, the program version
+//! ([`scenario_text`], `--set` overrides applied) and the bytes of its meshes, the back-end and adapter
+//! names, the program version
 //! and the running executable's own bytes (a rebuilt program never reads another build's state, whose
 //! physics may differ under the same version number). The file is a one-keyframe recording
 //! (`format`), so the container's checksums, its version and its header's scenario hash guard it, and
@@ -101,11 +102,12 @@ impl RelaxedCache {
     pub fn path_for(&self, scenario: &Scenario, engine: &Engine) -> PathBuf {
         let text = scenario_text(scenario);
         let key = format!(
-            "{}\u{0}{}\u{0}{}\u{0}{:016x}\u{0}{}",
+            "{}\u{0}{}\u{0}{}\u{0}{:016x}\u{0}{:016x}\u{0}{}",
             env!("CARGO_PKG_VERSION"),
             engine.backend,
             engine.adapter,
             build_id(),
+            mesh_id(scenario),
             text
         );
         let stem: String = scenario
@@ -201,6 +203,20 @@ impl RelaxedCache {
             let _ = std::fs::remove_file(p);
         }
     }
+}
+
+/// FNV-1a 64 over the bytes of the scenario's surface meshes (`PerfusedMesh`): the scenario's text
+/// names a mesh by its path only, and an edited mesh is another organ. An unreadable mesh counts as
+/// empty (building the simulation reports it).
+fn mesh_id(scenario: &Scenario) -> u64 {
+    let mut bytes = Vec::new();
+    for g in &scenario.particles {
+        if let crate::scenario::Generator::PerfusedMesh { file, .. } = g {
+            let path = scenario.base_dir.as_ref().map_or_else(|| PathBuf::from(file), |d| d.join(file));
+            bytes.extend_from_slice(&fnv1a64(&std::fs::read(path).unwrap_or_default()).to_le_bytes());
+        }
+    }
+    fnv1a64(&bytes)
 }
 
 /// A file [`RelaxedCache::store`] writes before renaming it (`NAME.tmpPID`).
