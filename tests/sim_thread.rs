@@ -76,18 +76,27 @@ fn simulation_thread_publishes_obeys_and_pauses_on_divergence() {
 /// the run steps on from there. On both back-ends (the GPU's restore is a keyframe upload).
 #[test]
 fn reset_after_the_relaxation_restores_the_relaxed_state() {
-    gpu_test("reset_after_the_relaxation_restores_the_relaxed_state", |ctx| {
+    on_both_back_ends("reset_after_the_relaxation_restores_the_relaxed_state", reset_restores);
+}
+
+/// Runs `f` with the simulation on the CPU, then on the GPU of the test adapter.
+fn on_both_back_ends(name: &str, f: fn(perfuse::sim::gpu::GpuContext, bool)) {
+    gpu_test(name, |ctx| {
         for use_gpu in [false, true] {
-            reset_restores(ctx.clone(), use_gpu);
+            f(ctx.clone(), use_gpu);
         }
     });
 }
 
-fn reset_restores(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
-    // a relaxation of a few steps (Δt ≈ 1.3e-5 s)
-    let sc = common::scenes::perfused_block()
+/// The block scene with a relaxation of a few steps (Δt ≈ 1.3e-5 s).
+fn briefly_relaxed_block() -> Scenario {
+    common::scenes::perfused_block()
         .with_override("relaxation=Some(Relaxation(duration: 4e-5, damping: 20.0, gravity_solid_only: true))")
-        .expect("valid");
+        .expect("valid")
+}
+
+fn reset_restores(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
+    let sc = briefly_relaxed_block();
     let (tx, rx) = std::sync::mpsc::channel();
     let shared = Arc::new(Shared::default());
     let handle = spawn(ctx, use_gpu, sc, true, None, rx, shared.clone()).expect("thread");
@@ -288,11 +297,7 @@ fn replay_mode_seeks_and_takes_over_with_a_branch() {
 /// Both back-ends.
 #[test]
 fn a_second_launch_starts_from_the_kept_relaxed_state() {
-    gpu_test("a_second_launch_starts_from_the_kept_relaxed_state", |ctx| {
-        for use_gpu in [false, true] {
-            second_launch(ctx.clone(), use_gpu);
-        }
-    });
+    on_both_back_ends("a_second_launch_starts_from_the_kept_relaxed_state", second_launch);
 }
 
 fn second_launch(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
@@ -304,12 +309,10 @@ fn second_launch(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
     let dir = std::env::temp_dir().join(format!("perfuse-relaxed-launch-{}-{use_gpu}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let cache = RelaxedCache::new(dir.join("cache"));
-    let sc = common::scenes::perfused_block()
-        .with_override("relaxation=Some(Relaxation(duration: 4e-5, damping: 20.0, gravity_solid_only: true))")
-        .expect("valid");
+    let sc = briefly_relaxed_block();
     let build = || Simulation::with_gpu(&sc, use_gpu.then(|| ctx.clone())).expect("sim");
     let file = cache.path_for(&sc, &Engine::of(&build()));
-    let launch = |fresh: bool, record: Option<std::path::PathBuf>| {
+    let launch = |cache: &RelaxedCache, fresh: bool, record: Option<std::path::PathBuf>| {
         let (tx, rx) = std::sync::mpsc::channel();
         let shared = Arc::new(Shared::default());
         let start = Start {
@@ -326,7 +329,7 @@ fn second_launch(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
         (tx, shared, handle)
     };
     // first launch: relaxes live, step by step, and keeps the state
-    let (tx, shared, handle) = launch(false, None);
+    let (tx, shared, handle) = launch(&cache, false, None);
     assert!(lock(&shared.status).relaxed_from.is_none());
     let mut k = 0;
     let steps_relaxed = loop {
@@ -361,7 +364,7 @@ fn second_launch(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
 
     // second launch, recording: starts at t = 0 from the kept state
     let rec_path = dir.join("from-cache.pfrec");
-    let (tx, shared, handle) = launch(false, Some(rec_path.clone()));
+    let (tx, shared, handle) = launch(&cache, false, Some(rec_path.clone()));
     let st = lock(&shared.status).clone();
     assert_eq!(st.steps, steps_relaxed, "{st:?}");
     assert!(st.t.abs() < 1e-12 && !st.relaxing && st.error.is_none(), "{st:?}");
@@ -382,7 +385,7 @@ fn second_launch(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
     assert_eq!(out.steps, steps_relaxed + 3);
 
     // --fresh-relaxation: relaxes live again
-    let (tx, shared, handle) = launch(true, None);
+    let (tx, shared, handle) = launch(&cache, true, None);
     let st = lock(&shared.status).clone();
     assert!(st.steps == 0 && st.relaxed_from.is_none(), "{st:?}");
     tx.send(Control::Step).expect("send");
@@ -393,19 +396,7 @@ fn second_launch(ctx: perfuse::sim::gpu::GpuContext, use_gpu: bool) {
     // a run the user changed while it relaxed (the tool moved) keeps nothing: its state is not the
     // scenario's relaxed state
     let cache2 = RelaxedCache::new(dir.join("cache2"));
-    let (tx, rx) = std::sync::mpsc::channel();
-    let shared = Arc::new(Shared::default());
-    let start = Start {
-        use_gpu,
-        scenario: sc.clone(),
-        paused: true,
-        record: None,
-        replay: None,
-        relaxed_cache: Some(cache2.clone()),
-        fresh_relaxation: false,
-    };
-    let handle = spawn_with(ctx.clone(), start, rx, shared.clone()).expect("thread");
-    wait_for(&shared, "first publish", |s| s.publishes >= 1);
+    let (tx, shared, handle) = launch(&cache2, false, None);
     tx.send(Control::Step).expect("send");
     wait_for(&shared, "one step", |s| s.steps == 1 && s.relaxing);
     tx.send(Control::Sim(Command::PlaceObject { object: 1, position: [0.0035, 0.003, 0.0055] })).expect("send");
