@@ -110,6 +110,12 @@ struct SimParams {
     // ambient pressure p_a added to (2.53) (numerics.ambient_pressure; 0: none)
     ambient_pressure: f32,
     bond_reach: f32,
+    // the capsule's layers for the liquid beneath it (forces.rs capsule_inner): liquid layers at Δx_l,
+    // tissue layers at Δx_s; 0: no membrane
+    capsule_liquid_layers: u32,
+    capsule_dx_liquid: f32,
+    capsule_solid_layers: u32,
+    capsule_dx_solid: f32,
 }
 
 // OutletRegion::find: the index k of the first outlet buffer in effect that holds x (boundaries included,
@@ -416,6 +422,8 @@ const JACOBI_SWEEPS: u32 = 6u;
 @group(0) @binding(49) var<storage, read_write> bed_table: array<f32>;
 // grid_reorder (grid.wgsl): the liquid's live arrays gathered in cell order, copied back by the apply pass
 @group(0) @binding(50) var<storage, read_write> liquid_scratch: array<LiquidMove>;
+// a membrane particle's outward unit normal in the generated configuration (xyz; zero for the tissue)
+@group(0) @binding(51) var<storage, read_write> solid_normal0: array<vec4<f32>>;
 
 // ---- emitters (twin: src/sim/cpu/emit.rs) ----
 const FLOW_MAX: u32 = 1024u;
@@ -713,6 +721,31 @@ fn powi(a_in: f32, b_in: i32) -> f32 {
 
 fn m3(c0: vec3<f32>, c1: vec3<f32>, c2: vec3<f32>) -> mat3x3<f32> {
     return mat3x3<f32>(c0, c1, c2);
+}
+
+// Twin of forces.rs capsule_normal: cof(F) n̂₀ = det F · F⁻ᵀ n̂₀ (Nanson), normalised; zero where F is
+// degenerate.
+fn capsule_normal(fm: Mat3Gpu, n0: vec3<f32>) -> vec3<f32> {
+    let n = cross(fm.c1.xyz, fm.c2.xyz) * n0.x + cross(fm.c2.xyz, fm.c0.xyz) * n0.y + cross(fm.c0.xyz, fm.c1.xyz) * n0.z;
+    let l2 = dot3(n, n);
+    if (l2 > 1e-12) {
+        return n / sqrt(l2);
+    }
+    return vec3<f32>(0.0);
+}
+
+// Twins of forces.rs capsule_inner, capsule_liquid_layer (k from 0), capsule_solid_layer (k from 1):
+// whether liquid i (x_ij = x_i − x_j) lies beneath membrane particle j's capsule, and x_i − x_g of a layer.
+fn capsule_inner(n: vec3<f32>, xij: vec3<f32>) -> bool {
+    return params.capsule_liquid_layers != 0u && any(n != vec3<f32>(0.0)) && dot3(xij, n) <= 0.0;
+}
+
+fn capsule_liquid_layer(n: vec3<f32>, xij: vec3<f32>, k: u32) -> vec3<f32> {
+    return xij - n * ((f32(k) + 0.5) * params.capsule_dx_liquid);
+}
+
+fn capsule_solid_layer(n: vec3<f32>, xij: vec3<f32>, k: u32) -> vec3<f32> {
+    return xij - n * (f32(k) * params.capsule_dx_solid);
 }
 
 fn m3_load(m: Mat3Gpu) -> mat3x3<f32> {

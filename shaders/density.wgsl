@@ -100,8 +100,28 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
             let r2 = dot3(xij, xij);
             if (r2 < r2x) {
                 let r = sqrt(r2);
-                if (r < kl.r && (solid_flags[j] & SOLID_MEMBRANE) != 0u) {
-                    rho += solid_vel[j].w * w_poly6(kl, r);
+                if ((solid_flags[j] & SOLID_MEMBRANE) != 0u) {
+                    let n = capsule_normal(solid_f[j], solid_normal0[j].xyz);
+                    if (capsule_inner(n, xij)) {
+                        // beneath the capsule: its layers continue the liquid (ρ) and the tissue (nˢ)
+                        // (forces.rs capsule_inner)
+                        for (var layer = 0u; layer < params.capsule_liquid_layers; layer++) {
+                            let xig = capsule_liquid_layer(n, xij, layer);
+                            let rg = sqrt(dot3(xig, xig));
+                            if (rg < kl.r) {
+                                rho += solid_vel[j].w * w_poly6(kl, rg);
+                            }
+                        }
+                        for (var layer = 1u; layer <= params.capsule_solid_layers; layer++) {
+                            let xig = capsule_solid_layer(n, xij, layer);
+                            let rg = sqrt(dot3(xig, xig));
+                            if (rg < kx.r) {
+                                sum_s += solid_pos[j].w * w_poly6(kx, rg);
+                            }
+                        }
+                    } else if (r < kl.r) {
+                        rho += solid_vel[j].w * w_poly6(kl, r);
+                    }
                 }
                 sum_s += solid_pos[j].w * w_poly6(kx, r);
             }

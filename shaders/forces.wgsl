@@ -355,7 +355,19 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
                 let r = sqrt(r2);
                 let vj = solid_vel[j];
                 if (r < kl.r && (solid_flags[j] & SOLID_MEMBRANE) != 0u) {
-                    a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xij, r, -1.0, 0.0, 1.0, g, 0.0);
+                    let n = capsule_normal(solid_f[j], solid_normal0[j].xyz);
+                    if (capsule_inner(n, xij)) {
+                        // beneath the capsule: its liquid layers (forces.rs capsule_inner)
+                        for (var layer = 0u; layer < params.capsule_liquid_layers; layer++) {
+                            let xig = capsule_liquid_layer(n, xij, layer);
+                            let rg = sqrt(dot3(xig, xig));
+                            if (rg < kl.r) {
+                                a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xig, rg, -1.0, 0.0, 1.0, g, 0.0);
+                            }
+                        }
+                    } else {
+                        a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xij, r, -1.0, 0.0, 1.0, g, 0.0);
+                    }
                 }
                 let dj = solid_dens[j];
                 if (params.kbar > 0.0) {
@@ -532,6 +544,10 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
     // terms in the order separate walks would)
     let pair_terms = params.kbar > 0.0 || params.wicking > 0.0;
     let membrane = (solid_flags[i] & SOLID_MEMBRANE) != 0u;
+    var normal_i = vec3<f32>(0.0);
+    if (membrane) {
+        normal_i = capsule_normal(solid_f[i], solid_normal0[i].xyz);
+    }
     if (pair_terms || membrane) {
         let r2x = kx.r * kx.r;
         let r2l = kl.r * kl.r;
@@ -558,9 +574,23 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                         fw -= xij * (mj / dj.x * wicking_pair(kx.h, n_s, di.y, r) / r);
                     }
                     if (membrane && r2 < r2l) {
-                        let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, liquid_vel[j].xyz, vi4.w, vi, -xij, r, -1.0, 0.0, 1.0, g_l,
-                                                    params.ambient_pressure);
-                        fm -= on_j * mj;
+                        let vj = liquid_vel[j].xyz;
+                        if (capsule_inner(normal_i, -xij)) {
+                            // the reaction of its liquid layers on liquid j beneath it (forces.rs capsule_inner)
+                            for (var layer = 0u; layer < params.capsule_liquid_layers; layer++) {
+                                let xjg = capsule_liquid_layer(normal_i, -xij, layer);
+                                let rg = sqrt(dot3(xjg, xjg));
+                                if (rg < kl.r) {
+                                    let on_g = liquid_from_boundary(dj.x, dj.w, dj.y, vj, vi4.w, vi, xjg, rg, -1.0, 0.0, 1.0,
+                                                                    g_l, params.ambient_pressure);
+                                    fm -= on_g * mj;
+                                }
+                            }
+                        } else {
+                            let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, vj, vi4.w, vi, -xij, r, -1.0, 0.0, 1.0, g_l,
+                                                        params.ambient_pressure);
+                            fm -= on_j * mj;
+                        }
                     }
                 }
             }

@@ -53,6 +53,9 @@ pub struct GeneratedParticles {
     pub solid_flags: Vec<u32>,
     /// Equivalent mass a solid particle shows the liquid when it is a membrane (boundary) particle.
     pub solid_liquid_boundary_mass: Vec<f64>,
+    /// Outward unit normal of a membrane particle in the generated configuration (its parent's n̂ of
+    /// SPEC §4.5's detection; zero for the tissue): the direction of the capsule's virtual layers.
+    pub solid_normal: Vec<V3>,
     pub boundary_pos: Vec<V3>,
     pub boundary_object: Vec<u32>,
     pub boundary_mass_liquid: Vec<f64>,
@@ -333,14 +336,24 @@ pub fn generate(s: &Scenario) -> GeneratedParticles {
         }
         perfusing.resize(g.liquid.pos.len(), perfused);
     }
-    let (membrane, parent) = match &s.membrane {
+    let (membrane, parent, normal) = match &s.membrane {
         Some(m) if !g.solid.pos.is_empty() => {
             let (flags, capsule, parent) = add_membrane(&mut g, m, d);
             keep_liquid_beneath_capsule(&mut g, &mesh_liquid, &capsule, &mut perfusing);
-            (flags, parent)
+            // a child's outward normal is its parent's (capsule holds the parents' in index order)
+            let mut by_parent: std::collections::HashMap<usize, V3> = std::collections::HashMap::new();
+            let parents = (0..parent.len()).filter(|&i| flags[i] && parent[i] == i);
+            for (i, (_, n_hat)) in parents.zip(&capsule) {
+                by_parent.insert(i, *n_hat);
+            }
+            let normal = (0..parent.len())
+                .map(|i| if flags[i] { by_parent.get(&parent[i]).copied().unwrap_or([0.0; 3]) } else { [0.0; 3] })
+                .collect();
+            (flags, parent, normal)
         }
-        _ => (vec![false; g.solid.pos.len()], (0..g.solid.pos.len()).collect()),
+        _ => (vec![false; g.solid.pos.len()], (0..g.solid.pos.len()).collect(), vec![[0.0; 3]; g.solid.pos.len()]),
     };
+    g.solid_normal = normal;
     // A capsule child is fixed (or tethered) with its parent (the two are one lattice site, SPEC
     // §4.1/§4.5): a child left free beside a kinematic parent, on the rim of a fixed region, was
     // squeezed out of the ligament region during the liver's relaxation and broke all 17 bonds that
@@ -514,6 +527,7 @@ fn empty_cavities(g: &mut GeneratedParticles, s: &Scenario, perfusing: &[bool]) 
     g.solid.mass = kept(&g.solid.mass, &keep_s);
     g.solid_flags = kept(&g.solid_flags, &keep_s);
     g.solid_liquid_boundary_mass = kept(&g.solid_liquid_boundary_mass, &keep_s);
+    g.solid_normal = kept(&g.solid_normal, &keep_s);
     g.liquid.pos = kept(&g.liquid.pos, &keep_l);
     g.liquid.vel = kept(&g.liquid.vel, &keep_l);
     g.liquid.mass = kept(&g.liquid.mass, &keep_l);

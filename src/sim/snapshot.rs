@@ -18,8 +18,9 @@ use serde::{Deserialize, Serialize};
 /// valve (`CpuState::suction_held`, the GPU mirror's `suction_held`; `Command::SetSuction`). 4: the GPU
 /// keeps τ and R as their upper triangles (`StressGpu`, 48 bytes per solid particle instead of 96).
 /// 5: boundary particles carry the solid-equivalent mass they show the liquid's nˢ (`BoundarySet::m_sn`;
-/// the GPU's object word its `BOUNDARY_IN_TISSUE` bit).
-pub const SNAPSHOT_LAYOUT: u32 = 5;
+/// the GPU's object word its `BOUNDARY_IN_TISSUE` bit). 6: solid particles carry the capsule's generated
+/// outward normal (`SolidSet::normal0`).
+pub const SNAPSHOT_LAYOUT: u32 = 6;
 
 /// One keyframe of a simulation.
 #[derive(Clone, Debug, Serialize, Deserialize)]

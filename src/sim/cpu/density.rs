@@ -14,6 +14,7 @@
 //!   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); without `sum_liquid` (`density_solid_kept`,
 //!   evaluation 0) nˡ is the one of the previous step's evaluation 1, on the same positions.
 
+use super::forces::{capsule_inner, capsule_liquid_layer, capsule_normal, capsule_solid_layer};
 use super::{BoundarySet, LiquidSet, Nbrs, SolidSet};
 use crate::scenario::SolidFlags;
 use crate::sim::params::{OutletRegion, Params};
@@ -50,9 +51,28 @@ pub fn density_liquid(
             });
             // One pass over the solid (R_× ≥ R_l): membrane particles as liquid boundary, and nˢ.
             let mut sum_s = 0.0f32;
-            nb.solid.for_each(xi, kx.r, |j, _, r| {
-                if r < kl.r && s.flags[j] & SolidFlags::MEMBRANE != 0 {
-                    rho += s.m_bl[j] * kl.w_poly6(r);
+            nb.solid.for_each(xi, kx.r, |j, xij, r| {
+                if s.flags[j] & SolidFlags::MEMBRANE != 0 {
+                    let n = capsule_normal(s.def_grad[j], s.normal0[j]);
+                    if capsule_inner(p, n, xij) {
+                        // beneath the capsule: its layers continue the liquid (ρ) and the tissue (nˢ)
+                        for k in 0..p.capsule_liquid_layers {
+                            let xig = capsule_liquid_layer(p, n, xij, k);
+                            let rg = xig.dot(xig).sqrt();
+                            if rg < kl.r {
+                                rho += s.m_bl[j] * kl.w_poly6(rg);
+                            }
+                        }
+                        for k in 1..=p.capsule_solid_layers {
+                            let xig = capsule_solid_layer(p, n, xij, k);
+                            let rg = xig.dot(xig).sqrt();
+                            if rg < kx.r {
+                                sum_s += s.m[j] * kx.w_poly6(rg);
+                            }
+                        }
+                    } else if r < kl.r {
+                        rho += s.m_bl[j] * kl.w_poly6(r);
+                    }
                 }
                 sum_s += s.m[j] * kx.w_poly6(r);
             });

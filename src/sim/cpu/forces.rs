@@ -353,6 +353,47 @@ pub fn liquid_from_boundary(
     a
 }
 
+/// Outward unit normal of a membrane particle now, from its generated one n̂₀ and its deformation
+/// gradient F: cof(F) n̂₀ = det F · F⁻ᵀ n̂₀ (Nanson's formula), normalised; zero where F is degenerate.
+/// Twin of `capsule_normal` in common.wgsl.
+#[inline]
+pub fn capsule_normal(f: Mat3, n0: Vec3) -> Vec3 {
+    let n = f.y_axis.cross(f.z_axis) * n0.x + f.z_axis.cross(f.x_axis) * n0.y + f.x_axis.cross(f.y_axis) * n0.z;
+    let l2 = n.dot(n);
+    if l2 > 1e-12 { n / l2.sqrt() } else { Vec3::ZERO }
+}
+
+/// The capsule seen from the liquid beneath it (README: deviations from SPEC): a membrane particle j
+/// stands for a wall of ⌈R/Δx⌉ layers (SPEC §4.1's thickness) along its outward normal n̂
+/// (`capsule_normal`), for liquid particles on the capsule's inner side, (x_j − x_i)·n̂ ≥ 0 — for
+/// which every layer lies no nearer than j itself, so the walks within R of j find each layer within R
+/// of i. For the liquid's ρ (2.46) and its boundary force (§4.1) the wall continues the liquid's
+/// lattice, which lies half a spacing beneath the capsule (`keep_liquid_beneath_capsule`): layers at
+/// x_j + (k + ½)Δx_l n̂, k = 0 … `capsule_liquid_layers` − 1, in place of j itself; for the liquid's nˢ
+/// (D-8) it continues the tissue's: layers at x_j + kΔx_s n̂, k = 1 … `capsule_solid_layers`, besides
+/// j. Liquid on the outer side sees j alone, as SPEC §4.1 has it. Without the layers the liquid beneath
+/// a single-layer capsule saw half a kernel of tissue (nˢ ≈ 0.3–0.45 where the tissue holds 0.7), so
+/// its penalty pressure (2.53) stayed 0 however much blood collected there, and blood drained through
+/// the liver's lower face at the Darcy speed. Twin of `capsule_inner` in common.wgsl.
+#[inline]
+pub fn capsule_inner(p: &Params, n: Vec3, xij: Vec3) -> bool {
+    p.capsule_liquid_layers != 0 && n != Vec3::ZERO && xij.dot(n) <= 0.0
+}
+
+/// x_i − x_g for the capsule's liquid layer k (0-based) of membrane particle j, from x_ij = x_i − x_j
+/// ([`capsule_inner`]). Twin of `capsule_liquid_layer` in common.wgsl.
+#[inline]
+pub fn capsule_liquid_layer(p: &Params, n: Vec3, xij: Vec3, k: u32) -> Vec3 {
+    xij - n * ((k as f32 + 0.5) * p.capsule_dx_liquid)
+}
+
+/// x_i − x_g for the capsule's tissue layer k (1-based) ([`capsule_inner`]). Twin of
+/// `capsule_solid_layer` in common.wgsl.
+#[inline]
+pub fn capsule_solid_layer(p: &Params, n: Vec3, xij: Vec3, k: u32) -> Vec3 {
+    xij - n * (k as f32 * p.capsule_dx_solid)
+}
+
 /// Monaghan's (2000) artificial pressure of a liquid pair under tension (`numerics.liquid_artificial_
 /// pressure`; README: deviations from SPEC): (R_i + R_j) f_ij^n with R = ε max(0, −p/ρ²), the liquid's
 /// form of the solid's artificial stress (2.59)–(2.60), and f_ij = W_C(r; h_l)/W_C(Δx_l; h_l). Added to
@@ -469,21 +510,21 @@ pub fn forces_liquid(
             let mut f = Vec3::ZERO;
             nb.solid.for_each(xi, kx.r, |j, xij, r| {
                 if r < kl.r && s.flags[j] & SolidFlags::MEMBRANE != 0 {
-                    a += liquid_from_boundary(
-                        p,
-                        rho,
-                        pr,
-                        n_l,
-                        vi,
-                        s.m_bl[j],
-                        s.v[j],
-                        xij,
-                        r,
-                        ObjectContact::MIRROR,
-                        1.0,
-                        g,
-                        0.0,
-                    );
+                    let (m_b, vb) = (s.m_bl[j], s.v[j]);
+                    let mirror = ObjectContact::MIRROR;
+                    let n = capsule_normal(s.def_grad[j], s.normal0[j]);
+                    if capsule_inner(p, n, xij) {
+                        // beneath the capsule: its liquid layers (`capsule_inner`)
+                        for k in 0..p.capsule_liquid_layers {
+                            let xig = capsule_liquid_layer(p, n, xij, k);
+                            let rg = xig.dot(xig).sqrt();
+                            if rg < kl.r {
+                                a += liquid_from_boundary(p, rho, pr, n_l, vi, m_b, vb, xig, rg, mirror, 1.0, g, 0.0);
+                            }
+                        }
+                    } else {
+                        a += liquid_from_boundary(p, rho, pr, n_l, vi, m_b, vb, xij, r, mirror, 1.0, g, 0.0);
+                    }
                 }
                 if p.kbar > 0.0 {
                     let k = friction_coefficient(p.kbar, n_s, s.n_s[j]);
@@ -662,6 +703,7 @@ pub fn forces_solid(
             // R_× ≥ R_l (each sum takes its terms in the order separate walks would).
             let pair_terms = p.kbar > 0.0 || p.wicking > 0.0;
             let membrane = s.flags[i] & SolidFlags::MEMBRANE != 0;
+            let normal_i = if membrane { capsule_normal(s.def_grad[i], s.normal0[i]) } else { Vec3::ZERO };
             if pair_terms || membrane {
                 let r2l = kl.r * kl.r;
                 let (mut f, mut fw, mut fm) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
@@ -674,23 +716,26 @@ pub fn forces_solid(
                         fw -= xij * (l.m[j] / l.rho[j] * wicking_pair(p.wicking, kx.h, n_s, s.n_l[i], r) / r);
                     }
                     if membrane && xij.length_squared() < r2l {
+                        let (rho_j, p_j, nl_j, v_j, m_b) = (l.rho[j], l.p[j], l.n_l[j], l.v[j], s.m_bl[i]);
+                        let (mirror, p_a) = (ObjectContact::MIRROR, p.ambient_pressure);
                         let xjb = -xij;
-                        let on_j = liquid_from_boundary(
-                            p,
-                            l.rho[j],
-                            l.p[j],
-                            l.n_l[j],
-                            l.v[j],
-                            s.m_bl[i],
-                            vi,
-                            xjb,
-                            r,
-                            ObjectContact::MIRROR,
-                            1.0,
-                            g_l,
-                            p.ambient_pressure,
-                        );
-                        fm -= on_j * l.m[j];
+                        if capsule_inner(p, normal_i, xjb) {
+                            // the reaction of its liquid layers on liquid j beneath it (`capsule_inner`)
+                            for k in 0..p.capsule_liquid_layers {
+                                let xjg = capsule_liquid_layer(p, normal_i, xjb, k);
+                                let rg = xjg.dot(xjg).sqrt();
+                                if rg < kl.r {
+                                    let on_j = liquid_from_boundary(
+                                        p, rho_j, p_j, nl_j, v_j, m_b, vi, xjg, rg, mirror, 1.0, g_l, p_a,
+                                    );
+                                    fm -= on_j * l.m[j];
+                                }
+                            }
+                        } else {
+                            let on_j =
+                                liquid_from_boundary(p, rho_j, p_j, nl_j, v_j, m_b, vi, xjb, r, mirror, 1.0, g_l, p_a);
+                            fm -= on_j * l.m[j];
+                        }
                     }
                 });
                 if pair_terms {

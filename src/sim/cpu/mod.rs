@@ -84,6 +84,9 @@ pub struct SolidSet {
     pub m: Vec<f32>,
     /// Mass shown to the liquid when the particle is a membrane (boundary) particle.
     pub m_bl: Vec<f32>,
+    /// A membrane particle's outward unit normal in the generated configuration (zero for the
+    /// tissue): its virtual layers lie along cof(F) n̂₀ (`forces::capsule_normal`).
+    pub normal0: Vec<Vec3>,
     pub flags: Vec<u32>,
     /// Initial position (kinematic particles' prescribed reference).
     pub x_ref: Vec<Vec3>,
@@ -268,6 +271,7 @@ impl CpuSolver {
             v: g.solid.vel.iter().map(tov).collect(),
             m: g.solid.mass.iter().map(|&m| m as f32).collect(),
             m_bl: g.solid_liquid_boundary_mass.iter().map(|&m| m as f32).collect(),
+            normal0: g.solid_normal.iter().map(tov).collect(),
             flags: g.solid_flags.clone(),
             rho: vec![(g.fraction_solid * params.rho0_s as f64) as f32; ns],
             drho: vec![0.0; ns],

@@ -68,11 +68,14 @@ pub enum Slot {
     BedTable,
     /// `grid_reorder`: the liquid's live arrays gathered in cell order (`LiquidMove`, 64 bytes each).
     LiquidScratch,
+    /// A membrane particle's outward normal in the generated configuration (`SolidSet::normal0`;
+    /// static): the direction of the capsule's virtual layers.
+    SolidNormal0,
 }
 
 impl Slot {
     /// The slot with the highest binding number (sizes the slot table).
-    pub const LAST: Slot = Slot::LiquidScratch;
+    pub const LAST: Slot = Slot::SolidNormal0;
 
     /// Binding number in group 0 (common.wgsl).
     pub const fn binding(self) -> u32 {
@@ -133,6 +136,7 @@ impl Slot {
             Slot::SolidAffine => "solid_affine",
             Slot::BedTable => "bed_table",
             Slot::LiquidScratch => "liquid_scratch",
+            Slot::SolidNormal0 => "solid_normal0",
         }
     }
 
@@ -181,5 +185,6 @@ mod tests {
         assert_eq!(Slot::SolidAffine.binding(), 48);
         assert_eq!(Slot::BedTable.binding(), 49);
         assert_eq!(Slot::LiquidScratch.binding(), 50);
+        assert_eq!(Slot::SolidNormal0.binding(), 51);
     }
 }

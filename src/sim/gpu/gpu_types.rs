@@ -121,6 +121,12 @@ pub struct SimParams {
     pub ambient_pressure: f32,
     /// `Params::bond_reach` (0: every particle tests its bonds against the blades).
     pub bond_reach: f32,
+    /// `Params::capsule_liquid_layers`, `capsule_dx_liquid`, `capsule_solid_layers`,
+    /// `capsule_dx_solid`: the capsule's layers for the liquid beneath it.
+    pub capsule_liquid_layers: u32,
+    pub capsule_dx_liquid: f32,
+    pub capsule_solid_layers: u32,
+    pub capsule_dx_solid: f32,
 }
 
 /// Set counts of a scene, as the uniform block carries them.
@@ -237,6 +243,10 @@ impl SimParams {
             wc_dx_l: p.wc_dx_l,
             ambient_pressure: p.ambient_pressure,
             bond_reach: p.bond_reach(),
+            capsule_liquid_layers: p.capsule_liquid_layers,
+            capsule_dx_liquid: p.capsule_dx_liquid,
+            capsule_solid_layers: p.capsule_solid_layers,
+            capsule_dx_solid: p.capsule_dx_solid,
         }
     }
 }
@@ -493,7 +503,7 @@ pub struct GridSet {
 }
 
 const _: () = assert!(size_of::<KernelConsts>() == 32);
-const _: () = assert!(size_of::<SimParams>() == 672);
+const _: () = assert!(size_of::<SimParams>() == 688);
 // common.wgsl's `tension: array<vec4<f32>, 8>` and density.wgsl's loop over 4 regions
 const _: () = assert!(MAX_TENSION_REGIONS == 4);
 // common.wgsl's `outlet: array<vec4<f32>, 6>` and outlet_find's loop over 2 outlets

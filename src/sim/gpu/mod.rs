@@ -445,6 +445,7 @@ impl GpuSolver {
         let st: Vec<StressGpu> = (0..s.x.len()).map(|i| StressGpu::pack(s.tau[i], s.art[i])).collect();
         out.push((Slot::SolidStress, bytes(&st)));
         out.push((Slot::SolidPosRef, bytes(&plain(&s.x_ref))));
+        out.push((Slot::SolidNormal0, bytes(&plain(&s.normal0))));
         let fit: Vec<Mat3Gpu> =
             (0..s.x.len()).map(|i| s.hg_fit.get(i).copied().unwrap_or(s.def_grad[i]).into()).collect();
         out.push((Slot::SolidAffine, bytes(&fit)));
