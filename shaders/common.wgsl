@@ -734,7 +734,8 @@ fn capsule_normal(fm: Mat3Gpu, n0: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(0.0);
 }
 
-// Twins of forces.rs capsule_inner, capsule_liquid_layer (k from 0), capsule_solid_layer (k from 1):
+// Twins of forces.rs capsule_inner and of the layers of capsule_liquid_layers (k from 0) and
+// capsule_solid_layers (k from 1):
 // whether liquid i (x_ij = x_i − x_j) lies beneath membrane particle j's capsule, and x_i − x_g of a layer.
 fn capsule_inner(n: vec3<f32>, xij: vec3<f32>) -> bool {
     return params.capsule_liquid_layers != 0u && any(n != vec3<f32>(0.0)) && dot3(xij, n) <= 0.0;

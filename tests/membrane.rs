@@ -53,6 +53,15 @@ fn intact_capsule_holds_its_blood() {
     // equilibrium and ~5 400 bonds born within 2 % of the search radius break under the thesis criterion.
 }
 
+/// Writes `cube.obj` into `dir`: the axis-aligned cube [a, b]³ as six quads wound outward (vertex k
+/// has x = bit 0, y = bit 1, z = bit 2).
+fn write_cube_mesh(dir: &Path, a: f64, b: f64) {
+    let v: Vec<String> =
+        (0..8).map(|k| format!("v {} {} {}", [a, b][k & 1], [a, b][(k >> 1) & 1], [a, b][(k >> 2) & 1])).collect();
+    let faces = "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+    std::fs::write(dir.join("cube.obj"), format!("{}\n{faces}", v.join("\n"))).expect("write mesh");
+}
+
 /// A perfused mesh's blood lies beneath its capsule (SPEC §4.5: the membrane is the liquid's virtual
 /// boundary; README: deviations): a liquid particle in the membrane plane feels the membrane only
 /// tangentially and is pushed out by the liquid behind it — the hanging liver lost blood through its flat
@@ -65,11 +74,7 @@ fn perfused_mesh_liquid_starts_beneath_the_capsule() {
     let (a, b) = (0.05 * dx, 10.25 * dx);
     let dir = std::env::temp_dir().join(format!("perfuse-capsule-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
-    let v: Vec<String> =
-        (0..8).map(|k| format!("v {} {} {}", [a, b][k & 1], [a, b][(k >> 1) & 1], [a, b][(k >> 2) & 1])).collect();
-    // Quads of the cube (vertex k has x = bit 0, y = bit 1, z = bit 2), wound outward.
-    let faces = "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
-    std::fs::write(dir.join("cube.obj"), format!("{}\n{faces}", v.join("\n"))).expect("write mesh");
+    write_cube_mesh(&dir, a, b);
     let text = format!(
         r#"Scenario(
     name: "capsule_cube", dimensions: 3,
@@ -174,10 +179,7 @@ fn hanging_perfused_cube(tag: &str, n: usize) -> (Scenario, std::path::PathBuf) 
     let (a, b) = (0.05 * dx, (n as f64 + 0.25) * dx);
     let dir = std::env::temp_dir().join(format!("perfuse-capsule-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
-    let v: Vec<String> =
-        (0..8).map(|k| format!("v {} {} {}", [a, b][k & 1], [a, b][(k >> 1) & 1], [a, b][(k >> 2) & 1])).collect();
-    let faces = "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
-    std::fs::write(dir.join("cube.obj"), format!("{}\n{faces}", v.join("\n"))).expect("write mesh");
+    write_cube_mesh(&dir, a, b);
     let top = (n as f64 - 0.6) * dx;
     let text = format!(
         r#"Scenario(

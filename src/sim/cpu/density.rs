@@ -14,7 +14,7 @@
 //!   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); without `sum_liquid` (`density_solid_kept`,
 //!   evaluation 0) nˡ is the one of the previous step's evaluation 1, on the same positions.
 
-use super::forces::{capsule_inner, capsule_liquid_layer, capsule_normal, capsule_solid_layer};
+use super::forces::{capsule_inner, capsule_liquid_layers, capsule_normal, capsule_solid_layers};
 use super::{BoundarySet, LiquidSet, Nbrs, SolidSet};
 use crate::scenario::SolidFlags;
 use crate::sim::params::{OutletRegion, Params};
@@ -56,20 +56,8 @@ pub fn density_liquid(
                     let n = capsule_normal(s.def_grad[j], s.normal0[j]);
                     if capsule_inner(p, n, xij) {
                         // beneath the capsule: its layers continue the liquid (ρ) and the tissue (nˢ)
-                        for k in 0..p.capsule_liquid_layers {
-                            let xig = capsule_liquid_layer(p, n, xij, k);
-                            let rg = xig.dot(xig).sqrt();
-                            if rg < kl.r {
-                                rho += s.m_bl[j] * kl.w_poly6(rg);
-                            }
-                        }
-                        for k in 1..=p.capsule_solid_layers {
-                            let xig = capsule_solid_layer(p, n, xij, k);
-                            let rg = xig.dot(xig).sqrt();
-                            if rg < kx.r {
-                                sum_s += s.m[j] * kx.w_poly6(rg);
-                            }
-                        }
+                        capsule_liquid_layers(p, n, xij, kl.r, |_, rg| rho += s.m_bl[j] * kl.w_poly6(rg));
+                        capsule_solid_layers(p, n, xij, kx.r, |_, rg| sum_s += s.m[j] * kx.w_poly6(rg));
                     } else if r < kl.r {
                         rho += s.m_bl[j] * kl.w_poly6(r);
                     }

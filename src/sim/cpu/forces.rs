@@ -380,18 +380,31 @@ pub fn capsule_inner(p: &Params, n: Vec3, xij: Vec3) -> bool {
     p.capsule_liquid_layers != 0 && n != Vec3::ZERO && xij.dot(n) <= 0.0
 }
 
-/// x_i − x_g for the capsule's liquid layer k (0-based) of membrane particle j, from x_ij = x_i − x_j
-/// ([`capsule_inner`]). Twin of `capsule_liquid_layer` in common.wgsl.
+/// Calls `f(x_i − x_g, |x_i − x_g|)` for each of the capsule's liquid layers of membrane particle j
+/// within `radius` of liquid i, x_g = x_j + (k + ½)Δx_l n̂, k = 0 … `capsule_liquid_layers` − 1, from
+/// x_ij = x_i − x_j ([`capsule_inner`]). Twin of the loops over `capsule_liquid_layer` in the shaders.
 #[inline]
-pub fn capsule_liquid_layer(p: &Params, n: Vec3, xij: Vec3, k: u32) -> Vec3 {
-    xij - n * ((k as f32 + 0.5) * p.capsule_dx_liquid)
+pub fn capsule_liquid_layers(p: &Params, n: Vec3, xij: Vec3, radius: f32, mut f: impl FnMut(Vec3, f32)) {
+    for k in 0..p.capsule_liquid_layers {
+        let xig = xij - n * ((k as f32 + 0.5) * p.capsule_dx_liquid);
+        let rg = xig.dot(xig).sqrt();
+        if rg < radius {
+            f(xig, rg);
+        }
+    }
 }
 
-/// x_i − x_g for the capsule's tissue layer k (1-based) ([`capsule_inner`]). Twin of
-/// `capsule_solid_layer` in common.wgsl.
+/// The same for the capsule's tissue layers x_j + kΔx_s n̂, k = 1 … `capsule_solid_layers`. Twin of the
+/// loop over `capsule_solid_layer` in density.wgsl.
 #[inline]
-pub fn capsule_solid_layer(p: &Params, n: Vec3, xij: Vec3, k: u32) -> Vec3 {
-    xij - n * (k as f32 * p.capsule_dx_solid)
+pub fn capsule_solid_layers(p: &Params, n: Vec3, xij: Vec3, radius: f32, mut f: impl FnMut(Vec3, f32)) {
+    for k in 1..=p.capsule_solid_layers {
+        let xig = xij - n * (k as f32 * p.capsule_dx_solid);
+        let rg = xig.dot(xig).sqrt();
+        if rg < radius {
+            f(xig, rg);
+        }
+    }
 }
 
 /// Monaghan's (2000) artificial pressure of a liquid pair under tension (`numerics.liquid_artificial_
@@ -515,13 +528,9 @@ pub fn forces_liquid(
                     let n = capsule_normal(s.def_grad[j], s.normal0[j]);
                     if capsule_inner(p, n, xij) {
                         // beneath the capsule: its liquid layers (`capsule_inner`)
-                        for k in 0..p.capsule_liquid_layers {
-                            let xig = capsule_liquid_layer(p, n, xij, k);
-                            let rg = xig.dot(xig).sqrt();
-                            if rg < kl.r {
-                                a += liquid_from_boundary(p, rho, pr, n_l, vi, m_b, vb, xig, rg, mirror, 1.0, g, 0.0);
-                            }
-                        }
+                        capsule_liquid_layers(p, n, xij, kl.r, |xig, rg| {
+                            a += liquid_from_boundary(p, rho, pr, n_l, vi, m_b, vb, xig, rg, mirror, 1.0, g, 0.0);
+                        });
                     } else {
                         a += liquid_from_boundary(p, rho, pr, n_l, vi, m_b, vb, xij, r, mirror, 1.0, g, 0.0);
                     }
@@ -721,16 +730,12 @@ pub fn forces_solid(
                         let xjb = -xij;
                         if capsule_inner(p, normal_i, xjb) {
                             // the reaction of its liquid layers on liquid j beneath it (`capsule_inner`)
-                            for k in 0..p.capsule_liquid_layers {
-                                let xjg = capsule_liquid_layer(p, normal_i, xjb, k);
-                                let rg = xjg.dot(xjg).sqrt();
-                                if rg < kl.r {
-                                    let on_j = liquid_from_boundary(
-                                        p, rho_j, p_j, nl_j, v_j, m_b, vi, xjg, rg, mirror, 1.0, g_l, p_a,
-                                    );
-                                    fm -= on_j * l.m[j];
-                                }
-                            }
+                            capsule_liquid_layers(p, normal_i, xjb, kl.r, |xjg, rg| {
+                                let on_j = liquid_from_boundary(
+                                    p, rho_j, p_j, nl_j, v_j, m_b, vi, xjg, rg, mirror, 1.0, g_l, p_a,
+                                );
+                                fm -= on_j * l.m[j];
+                            });
                         } else {
                             let on_j =
                                 liquid_from_boundary(p, rho_j, p_j, nl_j, v_j, m_b, vi, xjb, r, mirror, 1.0, g_l, p_a);
