@@ -1,9 +1,10 @@
 //! Diagnostic: where and how blood leaves an intact capsule. Relaxes the scenario (kept in
 //! /tmp/perfuse-probe-cache2 between runs), steps it to T_END on the CPU, prints per FRAME the liquid
-//! outside (nˢ < 0.05) and leaving (nˢ < 0.12), then each leaving particle's history: position,
+//! outside (nˢ < 0.05), leaving (nˢ < 0.12) and beyond the capsule's local hull
+//! (`analysis::capsule::beyond_capsule`), then each leaving particle's history: position,
 //! velocity, fractions, pressure and its signed distance along the outward normal of its nearest
 //! membrane particle. `TRACE_RELAX=1` traces the relaxation instead (t < 0); `IDS=a,b,…` picks the
-//! particles. Found the liver's seepage through its lower face (README: deviations, the capsule's layers).
+//! particles, `BEYOND=1` those beyond the capsule at the end. Found the liver's seepage through its lower face (README: deviations, the capsule's layers).
 //!
 //! ```text
 //! cargo run --release --example seep_probe -- SCENARIO T_END FRAME [k=v]...
@@ -58,22 +59,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let from = relax_with_cache(Some(&cache), false, &sc, &mut sim, |_| {})?;
         eprintln!("relaxed ({from:?}) in {:.0} s", t0.elapsed().as_secs_f64());
     }
+    let normal0 = perfuse::scenario::generate(&sc).solid_normal;
+    let mut last_beyond: Vec<u32>;
     let mut t = sim.time();
     loop {
         let s = sim.read_state()?;
         let st_l = s.liquid.clone().in_id_order();
         let outside = st_l.n_s.iter().filter(|&&n| n < 0.05).count();
         let leaving = st_l.n_s.iter().filter(|&&n| n < 0.12).count();
+        let beyond: Vec<u32> =
+            perfuse::analysis::capsule::beyond_capsule(&s, &normal0, dx).into_iter().map(|i| s.liquid.id[i]).collect();
         eprintln!(
-            "t {:.3} steps {} outside {} leaving {} broken {} ({:.0} s)",
+            "t {:.3} steps {} outside {} leaving {} beyond the capsule {} broken {} ({:.0} s)",
             s.t,
             s.steps,
             outside,
             leaving,
+            beyond.len(),
             s.broken_bonds(),
             t0.elapsed().as_secs_f64()
         );
         frames.push((s.t, st_l, s.solid.clone().in_id_order(), s.solid_extra.flags.clone()));
+        last_beyond = beyond;
         if t >= t_end - 1e-9 {
             break;
         }
@@ -84,6 +91,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (_, last, _, _) = frames.last().ok_or("no frame")?;
     let ids: Vec<usize> = match std::env::var("IDS") {
         Ok(s) => s.split(',').filter_map(|x| x.parse().ok()).collect(),
+        Err(_) if std::env::var("BEYOND").is_ok() => {
+            (0..last.len()).filter(|&i| last_beyond.contains(&last.id[i])).collect()
+        }
         Err(_) => (0..last.len()).filter(|&i| last.n_s[i] < 0.12).collect(),
     };
     println!("dx {dx}; {} leaving at the end", ids.len());

@@ -267,10 +267,12 @@ enum Cmd {
     /// Run the validation cases against their analytic references: report.json and PNG plots.
     Validate {
         /// Run only this case (poiseuille, brinkman, convergence, hydrostatic, cantilever; wicking,
-        /// liver_scalpel, projectile, syringe and dmd run only when named: the three fabric cases of SPEC §7.12,
+        /// liver_scalpel, projectile, syringe, dmd, capsule and liver_rest run only when named: the three fabric cases of SPEC §7.12,
         /// ≈ 45 min with --quick on a CPU; the liver cut twice, SPEC §9.3 L1/L2, ≈ 2.5 h —
         /// liver_scalpel_L1 or liver_scalpel_L2 runs one of the two; the projectile of SPEC §7.10
-        /// for 1 s (--quick: relaxed, then 0.2 s at 12³, ≈ 50 min on a CPU); the syringe of SPEC §7.8 for 2 s; dmd: the oscillating wall and the broken dam with DMD, SPEC §7.13–7.14).
+        /// for 1 s (--quick: relaxed, then 0.2 s at 12³, ≈ 50 min on a CPU); the syringe of SPEC §7.8 for 2 s; dmd: the oscillating wall and the broken dam with DMD, SPEC §7.13–7.14;
+        /// capsule: an intact capsule's leaked blood over 10⁴ steps, hanging under gravity and indented 30 %, issue 6 §1;
+        /// liver_rest: the default liver relaxed and at rest on its bed, issue 6 §4, ≈ 4 min with --quick on a CPU).
         #[arg(long)]
         case: Option<String>,
         /// Reduced resolutions (what the test suite runs).

@@ -17,15 +17,7 @@ const L_C: f64 = 0.05;
 /// The shipped scenario `file` re-gridded to n³ solid and (n − 1)³ liquid particles, plus `extra`.
 fn specimen(file: &str, n: usize, extra: &[&str]) -> Scenario {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios").join(file);
-    let dx_s = L_C / n as f64;
-    let mut set = vec![
-        "relaxation=null".to_string(),
-        format!("numerics.dx_solid={dx_s}"),
-        format!("numerics.dx_liquid={}", L_C / (n - 1) as f64),
-        format!("numerics.h_liquid={}", 1.3 * dx_s),
-        format!("boundaries.0.spacing={dx_s}"),
-        format!("boundaries.0.shape.min=[-0.075, -0.075, {}]", -3.0 * dx_s),
-    ];
+    let mut set = perfuse::analysis::capsule::specimen_overrides(n);
     set.extend(extra.iter().map(|s| s.to_string()));
     Scenario::load_with_overrides(&path, &set).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -136,24 +128,8 @@ fn indentation_bulges_leaves_a_dent_and_does_not_leak() {
     let n = 10;
     let dx_s = L_C / n as f64;
     let r_ind = 0.2 * L_C;
-    let amp = 0.3 * L_C + 0.5 * dx_s;
-    let sc = specimen(
-        "indentation.ron",
-        n,
-        &[
-            "gravity=[0.0, 0.0, 0.0]",
-            "solid.c10=1e4",
-            "solid.c01=40",
-            "solid.k_s=1e4",
-            "solid.k_sat=1e4",
-            "liquid.stiffness=1e4",
-            &format!("boundaries.1.spacing={}", 0.5 * dx_s),
-            &format!("boundaries.1.shape.centre=[0.0, 0.0, {}]", L_C + r_ind + 0.5 * dx_s),
-            &format!("boundaries.1.motion.amplitude=[0.0, 0.0, {amp}]"),
-            "boundaries.1.motion.frequency=2.5",
-        ],
-    );
-    let period = 0.4;
+    let sc = perfuse::analysis::capsule::indented_specimen(n).unwrap_or_else(|e| panic!("{e}"));
+    let period = perfuse::analysis::capsule::INDENTATION_PERIOD;
     let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
     sim.step().expect("first step");
     let s0 = sim.read_state().expect("state");
@@ -317,58 +293,5 @@ fn syringe_draws_blood_out_of_the_tissue() {
     assert_eq!(o.invariants_failed, 0);
 }
 
-/// The default liver at rest (issue 6 §4: "resting on a support as in the abdomen, ready for the user's
-/// tool"; README: deviations): `liver.ron` coarsened to Δx = 7 mm (the scalpel's 7.5-mm blade still holds a layer; the capsule's ratio scaled with
-/// 1/Δx_s to keep its sheet stiffness, the bed's clearance and depth with Δx_s), relaxed as shipped and
-/// run 0.05 s undamped. Nothing tears, no blood leaves the capsule, the organ does not drift as a
-/// whole, and it is at rest: the solid's mean speed stays below 2 mm/s (1.21 mm/s measured; 6.75 mm/s
-/// with the 0.1-s relaxation shipped before 2026-12-06, which left the organ bouncing on its bed
-/// after t = 0). (Before the moulded bed, the elastic ligaments and the stiffer capsule, bonds tore at the
-/// ligaments and under the right lobe from t = 0 on, and `first_cut_s` fired without a cut.)
-#[test]
-fn the_default_liver_rests_on_its_bed_without_tearing() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenarios/liver.ron");
-    let set: Vec<String> = [
-        "numerics.dx_solid=0.007",
-        "numerics.dx_liquid=0.007",
-        "membrane.stiffness=7.14",
-        "boundaries.4.mould.clearance=0.007",
-        "boundaries.4.mould.depth=0.021",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
-    let sc = Scenario::load_with_overrides(&path, &set).unwrap_or_else(|e| panic!("{e}"));
-    let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("builds");
-    let s0 = sim.read_state().expect("state");
-    sim.relax(|_| {}).expect("relaxes");
-    let relaxed = sim.read_state().expect("state");
-    sim.advance_until(0.05, u64::MAX, |_| {}).expect("runs");
-    let s = sim.read_state().expect("state");
-    let n = s.solid.len() as f32;
-    let mean_speed = s.solid.vel.iter().map(|v| v.length()).sum::<f32>() / n;
-    let bulk = s.solid.vel.iter().copied().sum::<Vec3>() / n;
-    let sag = s.solid.pos.iter().zip(&s0.solid.pos).map(|(a, b)| b.y - a.y).sum::<f32>() / n;
-    let drift = s.solid.pos.iter().zip(&relaxed.solid.pos).map(|(a, b)| *a - *b).sum::<Vec3>() / n;
-    eprintln!(
-        "liver at Δx = 7 mm: {} solid, {} liquid; broken while relaxing {}, after t = 0 {}; at 0.05 s mean speed \
-         {:.2} mm/s, bulk ({:.2}, {:.2}, {:.2}) mm/s, centroid drift since t = 0 {:.3} mm, mean sag {:.2} mm; \
-         liquid outside {}",
-        s.solid.len(),
-        s.liquid.len(),
-        relaxed.broken_bonds(),
-        s.broken_bonds() - relaxed.broken_bonds(),
-        mean_speed * 1e3,
-        bulk.x * 1e3,
-        bulk.y * 1e3,
-        bulk.z * 1e3,
-        drift.length() * 1e3,
-        sag * 1e3,
-        s.liquid_outside()
-    );
-    assert_eq!(s.broken_bonds(), 0, "bonds tore at rest");
-    assert_eq!(s.liquid_outside(), 0, "blood left the intact capsule");
-    assert!(drift.length() < 1e-3, "the organ drifted {drift} m in 0.05 s");
-    assert!(mean_speed < 2e-3, "the organ is not at rest 0.05 s after t = 0: mean speed {mean_speed} m/s");
-    assert!((0.0..5e-3).contains(&sag), "the organ settled {sag} m onto its bed");
-}
+// The default liver at rest (issue 6 §4) is `perfuse validate --case liver_rest --quick`
+// (`analysis::liver_rest`): at 7 mm it is the suite's largest run, ≈ 4 min on two cores.

@@ -2,6 +2,7 @@
 //! neighbourhood centre of mass, resolution enhancement (three children per membrane particle, parent
 //! mass shared), and an intact capsule holding its blood (issue: surgical tissue, first increment).
 
+use perfuse::analysis::capsule;
 use perfuse::scenario::{Scenario, SolidFlags};
 use perfuse::sim::{BackendKind, Simulation};
 use std::path::Path;
@@ -53,15 +54,6 @@ fn intact_capsule_holds_its_blood() {
     // equilibrium and ~5 400 bonds born within 2 % of the search radius break under the thesis criterion.
 }
 
-/// Writes `cube.obj` into `dir`: the axis-aligned cube [a, b]³ as six quads wound outward (vertex k
-/// has x = bit 0, y = bit 1, z = bit 2).
-fn write_cube_mesh(dir: &Path, a: f64, b: f64) {
-    let v: Vec<String> =
-        (0..8).map(|k| format!("v {} {} {}", [a, b][k & 1], [a, b][(k >> 1) & 1], [a, b][(k >> 2) & 1])).collect();
-    let faces = "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
-    std::fs::write(dir.join("cube.obj"), format!("{}\n{faces}", v.join("\n"))).expect("write mesh");
-}
-
 /// A perfused mesh's blood lies beneath its capsule (SPEC §4.5: the membrane is the liquid's virtual
 /// boundary; README: deviations): a liquid particle in the membrane plane feels the membrane only
 /// tangentially and is pushed out by the liquid behind it — the hanging liver lost blood through its flat
@@ -74,7 +66,7 @@ fn perfused_mesh_liquid_starts_beneath_the_capsule() {
     let (a, b) = (0.05 * dx, 10.25 * dx);
     let dir = std::env::temp_dir().join(format!("perfuse-capsule-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
-    write_cube_mesh(&dir, a, b);
+    capsule::write_cube_mesh(&dir, a, b).expect("write mesh");
     let text = format!(
         r#"Scenario(
     name: "capsule_cube", dimensions: 3,
@@ -170,57 +162,12 @@ fn a_stiffer_capsule_scales_the_membrane_stress_only() {
     assert!(n_mem > 0 && n_plain > 0, "{n_mem} membrane, {n_plain} plain");
 }
 
-/// A cube of perfused tissue (mesh spanning [0.05, n + 0.25]Δx: n³ solid sites, its capsule the planes
-/// at 0.5Δx and (n − 0.5)Δx, (n − 1)³ liquid sites beneath it), of the default liver's interactive
-/// material (its friction drains blood at the Darcy speed ≈ 1 cm/s), hanging from its fixed top plane
-/// under gravity −y. Returns the scenario and its temporary directory.
+/// The hanging cube of `analysis::capsule` (n³ sites at 5 mm) with its mesh in a fresh temporary
+/// directory, which the caller removes.
 fn hanging_perfused_cube(tag: &str, n: usize) -> (Scenario, std::path::PathBuf) {
-    let dx = 0.005;
-    let (a, b) = (0.05 * dx, (n as f64 + 0.25) * dx);
     let dir = std::env::temp_dir().join(format!("perfuse-capsule-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    write_cube_mesh(&dir, a, b);
-    let top = (n as f64 - 0.6) * dx;
-    let text = format!(
-        r#"Scenario(
-    name: "hanging_cube", dimensions: 3,
-    domain: Domain(min: (-0.02, -0.03, -0.02), max: (0.07, 0.07, 0.07)),
-    gravity: (0.0, -9.81, 0.0),
-    liquid: Some(Liquid(density: 1060.0, viscosity: 0.0035, sound_speed: Some(10.0))),
-    solid: Some(Solid(density: 1060.0, c10: 900.0, c01: 100.0, k_s: 2.0e4, n_sat: 0.7, k_sat: 2.0e4, friction: 1.0e6,
-                      critical_stretch: Some(1.3))),
-    numerics: Numerics(dx_solid: Some({dx}), dx_liquid: Some({dx}), h_over_dx: 1.3, sound_speed_solid: Some(10.0),
-                       xsph: Xsph(solid: 0.5, liquid: 0.0)),
-    particles: [PerfusedMesh(file: "cube.obj", solid_fraction: 0.7, liquid_fraction: 0.3)],
-    fixed_regions: [Box(min: (-1.0, {top}, -1.0), max: (1.0, 1.0, 1.0))],
-    membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483, stiffness: 10.0)),
-    duration: 1.0,
-)"#
-    );
-    let sc = Scenario::from_str_named(&text, &dir.join("cube.ron").to_string_lossy()).unwrap_or_else(|e| panic!("{e}"));
+    let sc = capsule::hanging_cube(&dir, n, 0.005).unwrap_or_else(|e| panic!("{e}"));
     (sc, dir)
-}
-
-/// Liquid particles beyond the capsule: farther out than 0.1Δx along the current outward normal
-/// cof(F) n̂₀ (`forces::capsule_normal`) of every membrane particle within 1.5Δx (and there is one) —
-/// outside the capsule's local hull, so that blood beneath an edge, which lies beyond the diagonal
-/// plane of the edge's own particles, is not counted.
-fn liquid_beyond_capsule(s: &perfuse::sim::State, normal0: &[[f64; 3]], dx: f32) -> usize {
-    let membrane: Vec<usize> =
-        (0..s.solid.len()).filter(|&k| s.solid_extra.flags[k] & SolidFlags::MEMBRANE != 0).collect();
-    s.liquid
-        .pos
-        .iter()
-        .filter(|&&x| {
-            let mut near = membrane.iter().filter(|&&m| s.solid.pos[m].distance(x) < 1.5 * dx).peekable();
-            near.peek().is_some()
-                && near.all(|&m| {
-                    let n0 = glam::Vec3::new(normal0[m][0] as f32, normal0[m][1] as f32, normal0[m][2] as f32);
-                    let n = perfuse::sim::cpu::forces::capsule_normal(s.solid_extra.def_grad[m], n0);
-                    (x - s.solid.pos[m]).dot(n) > 0.1 * dx
-                })
-        })
-        .count()
 }
 
 /// The capsule continues the tissue for the blood beneath it (its layers, `forces::capsule_inner`;
@@ -294,7 +241,7 @@ fn a_hanging_perfused_cube_keeps_its_blood_in_its_capsule() {
         let mut sim = Simulation::new(&sc, backend).expect("sim");
         sim.advance_until(0.12, u64::MAX, |_| {}).expect("runs");
         let s = sim.read_state().expect("state");
-        let beyond = liquid_beyond_capsule(&s, &g.solid_normal, 0.005);
+        let beyond = capsule::liquid_beyond_capsule(&s, &g.solid_normal, 0.005);
         let lowest_liquid = s.liquid.pos.iter().map(|x| x.y).fold(f32::INFINITY, f32::min);
         let lowest_solid = s.solid.pos.iter().map(|x| x.y).fold(f32::INFINITY, f32::min);
         let p_bottom = s

@@ -5,10 +5,12 @@
 //! dam (`dmd_cases`).
 
 pub mod analytic;
+pub mod capsule;
 pub mod dmd;
 pub mod dmd_cases;
 pub mod frames;
 pub mod hemorrhage;
+pub mod liver_rest;
 pub mod plot;
 pub mod projectile;
 pub mod relaxation;

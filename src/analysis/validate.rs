@@ -26,9 +26,20 @@ pub const CASES: [&str; 5] = ["poiseuille", "brinkman", "convergence", "hydrosta
 
 /// Cases run only when named with `--case` (each is tens of minutes on a CPU): the wicking set of SPEC
 /// §7.12 (W1–W3), the liver cut by the scalpel (SPEC §9.3: L1 and L2, or one of them alone) and the
-/// projectile (SPEC §7.10), the syringe (SPEC §7.8) and the DMD of the oscillating wall and the broken dam (SPEC §7.13–7.14).
-pub const EXTRA_CASES: [&str; 7] =
-    ["wicking", "liver_scalpel", "liver_scalpel_L1", "liver_scalpel_L2", "projectile", "syringe", "dmd"];
+/// projectile (SPEC §7.10), the syringe (SPEC §7.8), the DMD of the oscillating wall and the broken dam (SPEC §7.13–7.14)
+/// the intact capsule over 10⁴ steps, hanging and indented (issue 6 §1), and the default liver at rest
+/// (issue 6 §4).
+pub const EXTRA_CASES: [&str; 9] = [
+    "wicking",
+    "liver_scalpel",
+    "liver_scalpel_L1",
+    "liver_scalpel_L2",
+    "projectile",
+    "syringe",
+    "dmd",
+    "capsule",
+    "liver_rest",
+];
 
 /// The cases `--set` may edit: each runs one scenario file (re-gridded by its preset).
 pub const SET_CASES: [&str; 5] = ["liver_scalpel", "liver_scalpel_L1", "liver_scalpel_L2", "projectile", "syringe"];
@@ -37,7 +48,7 @@ pub const SET_CASES: [&str; 5] = ["liver_scalpel", "liver_scalpel_L1", "liver_sc
 #[non_exhaustive]
 pub enum ValidationError {
     #[error(
-        "unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever, wicking, liver_scalpel, liver_scalpel_L1, liver_scalpel_L2, projectile, syringe, dmd"
+        "unknown validation case `{0}` — use one of: poiseuille, brinkman, convergence, hydrostatic, cantilever, wicking, liver_scalpel, liver_scalpel_L1, liver_scalpel_L2, projectile, syringe, dmd, capsule, liver_rest"
     )]
     UnknownCase(String),
     #[error(
@@ -173,6 +184,8 @@ pub fn run_validation(
             "projectile" => super::projectile::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides)?,
             "syringe" => super::syringe::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides)?,
             "dmd" => super::dmd_cases::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
+            "capsule" => super::capsule::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
+            "liver_rest" => super::liver_rest::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
             _ => cantilever(&ctx)?,
         };
         cases.extend(rows);
