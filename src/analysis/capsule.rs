@@ -156,10 +156,29 @@ pub fn beyond_capsule(s: &State, normal0: &[[f64; 3]], dx: f32) -> Vec<usize> {
         .collect()
 }
 
+/// The case's two runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CapsuleRun {
+    /// Sampled every [`SAMPLE_STEPS`] steps.
+    Hanging,
+    /// Sampled at sixteenths of the indenter's period, for at least one period; the depth is read at
+    /// the fourth sample (the indenter's deepest point).
+    Indented,
+}
+
+impl CapsuleRun {
+    pub fn name(self) -> &'static str {
+        match self {
+            CapsuleRun::Hanging => "hanging",
+            CapsuleRun::Indented => "indented",
+        }
+    }
+}
+
 /// What one run of the case measured.
 #[derive(Clone, Debug, Default)]
 pub struct CapsuleOutcome {
-    /// "hanging" or "indented".
+    /// "hanging" or "indented" ([`CapsuleRun::name`]).
     pub run: String,
     /// Lattice, e.g. "8^3 solid + capsule, 7^3 liquid".
     pub resolution: String,
@@ -180,10 +199,10 @@ pub struct CapsuleOutcome {
 
 /// Runs `sc` for at least [`STEPS`] steps (the indented run also at least one period, sampled at
 /// sixteenths of it), counting leaked liquid at every sample.
-pub fn run(sc: &Scenario, backend: BackendKind, label: &str, dx: f32) -> Result<CapsuleOutcome, ValidationError> {
+pub fn run(sc: &Scenario, backend: BackendKind, which: CapsuleRun, dx: f32) -> Result<CapsuleOutcome, ValidationError> {
     let normal0 = crate::scenario::generate(sc).solid_normal;
     let mut sim = Simulation::new(sc, backend)?;
-    let indented = label == "indented";
+    let (indented, label) = (which == CapsuleRun::Indented, which.name());
     let s0 = sim.read_state()?;
     let mut o =
         CapsuleOutcome { run: label.into(), solid: s0.solid.len(), liquid: s0.liquid.len(), ..Default::default() };
@@ -266,12 +285,12 @@ pub fn validate(
     let started = Instant::now();
     let dx_hang = HANGING_DX * 8.0 / n_hang as f64;
     let sc = hanging_cube(&out.join("capsule_hanging"), n_hang, dx_hang)?;
-    let mut o = run(&sc, backend, "hanging", dx_hang as f32)?;
+    let mut o = run(&sc, backend, CapsuleRun::Hanging, dx_hang as f32)?;
     o.resolution = format!("{n_hang}^3 solid + capsule, {}^3 liquid, dx {:.2} mm", n_hang - 1, dx_hang * 1e3);
     all.extend(rows(&o, started.elapsed().as_secs_f64()));
     let started = Instant::now();
     let sc = indented_specimen(n_ind)?;
-    let mut o = run(&sc, backend, "indented", (L_C / n_ind as f64) as f32)?;
+    let mut o = run(&sc, backend, CapsuleRun::Indented, (L_C / n_ind as f64) as f32)?;
     o.resolution = format!("{n_ind}^3 solid + capsule, {}^3 liquid", n_ind - 1);
     all.extend(rows(&o, started.elapsed().as_secs_f64()));
     Ok(all)

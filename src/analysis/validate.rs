@@ -26,7 +26,7 @@ pub const CASES: [&str; 5] = ["poiseuille", "brinkman", "convergence", "hydrosta
 
 /// Cases run only when named with `--case` (each is tens of minutes on a CPU): the wicking set of SPEC
 /// §7.12 (W1–W3), the liver cut by the scalpel (SPEC §9.3: L1 and L2, or one of them alone) and the
-/// projectile (SPEC §7.10), the syringe (SPEC §7.8), the DMD of the oscillating wall and the broken dam (SPEC §7.13–7.14)
+/// projectile (SPEC §7.10), the syringe (SPEC §7.8), the DMD of the oscillating wall and the broken dam (SPEC §7.13–7.14),
 /// the intact capsule over 10⁴ steps, hanging and indented (issue 6 §1), and the default liver at rest
 /// (issue 6 §4).
 pub const EXTRA_CASES: [&str; 9] = [
