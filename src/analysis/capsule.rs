@@ -200,8 +200,9 @@ pub struct CapsuleOutcome {
 /// Runs `sc` for at least [`STEPS`] steps (the indented run also at least one period, sampled at
 /// sixteenths of it), counting leaked liquid at every sample.
 pub fn run(sc: &Scenario, backend: BackendKind, which: CapsuleRun, dx: f32) -> Result<CapsuleOutcome, ValidationError> {
-    let normal0 = crate::scenario::generate(sc).solid_normal;
-    let mut sim = Simulation::new(sc, backend)?;
+    let generated = crate::scenario::generate(sc);
+    let normal0 = generated.solid_normal.clone();
+    let mut sim = Simulation::from_generated(sc, generated, backend)?;
     let (indented, label) = (which == CapsuleRun::Indented, which.name());
     let s0 = sim.read_state()?;
     let mut o =

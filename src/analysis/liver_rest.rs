@@ -64,8 +64,9 @@ pub struct RestOutcome {
 
 /// Relaxes `sc` as it says and runs it [`REST_DURATION`] undamped, sampling every 0.01 s.
 pub fn run(sc: &Scenario, backend: BackendKind) -> Result<RestOutcome, ValidationError> {
-    let normal0 = crate::scenario::generate(sc).solid_normal;
-    let mut sim = Simulation::new(sc, backend)?;
+    let generated = crate::scenario::generate(sc);
+    let normal0 = generated.solid_normal.clone();
+    let mut sim = Simulation::from_generated(sc, generated, backend)?;
     let dx = sim.params().dx_solid;
     let s0 = sim.read_state()?;
     sim.relax(|_| {})?;
