@@ -116,6 +116,11 @@ struct SimParams {
     capsule_dx_liquid: f32,
     capsule_solid_layers: u32,
     capsule_dx_solid: f32,
+    // the capsule's seal (forces.rs capsule_seal_pair): 1 on, 0 off
+    capsule_seal: f32,
+    _pad_seal0: f32,
+    _pad_seal1: f32,
+    _pad_seal2: f32,
 }
 
 // OutletRegion::find: the index k of the first outlet buffer in effect that holds x (boundaries included,
@@ -424,6 +429,8 @@ const JACOBI_SWEEPS: u32 = 6u;
 @group(0) @binding(50) var<storage, read_write> liquid_scratch: array<LiquidMove>;
 // a membrane particle's outward unit normal in the generated configuration (xyz; zero for the tissue)
 @group(0) @binding(51) var<storage, read_write> solid_normal0: array<vec4<f32>>;
+// each solid particle's bond count in the generated configuration (SolidSet::bond_count0; static)
+@group(0) @binding(52) var<storage, read_write> bond_count0: array<u32>;
 
 // ---- emitters (twin: src/sim/cpu/emit.rs) ----
 const FLOW_MAX: u32 = 1024u;
@@ -747,6 +754,37 @@ fn capsule_liquid_layer(n: vec3<f32>, xij: vec3<f32>, k: u32) -> vec3<f32> {
 
 fn capsule_solid_layer(n: vec3<f32>, xij: vec3<f32>, k: u32) -> vec3<f32> {
     return xij - n * (f32(k) * params.capsule_dx_solid);
+}
+
+// Steps over which the capsule's seal walks liquid beyond the capsule's plane back to it (forces.rs
+// CAPSULE_SEAL_STEPS).
+const CAPSULE_SEAL_STEPS: f32 = 32.0;
+// Steps over which the seal stops liquid moving out through the capsule (forces.rs CAPSULE_SEAL_STOP_STEPS).
+const CAPSULE_SEAL_STOP_STEPS: f32 = 4.0;
+
+// Twin of forces.rs capsule_seals: membrane particle j still seals (three quarters of its bonds intact).
+fn capsule_seals(j: u32) -> bool {
+    return 4u * bond_count[j] >= 3u * bond_count0[j];
+}
+
+// Twin of forces.rs capsule_seal_pair: (term, w) of intact membrane particle j (outward normal n) for
+// liquid i, x_ij = x_i − x_j, v_rel = v_i − v_j.
+fn capsule_seal_pair(n: vec3<f32>, xij: vec3<f32>, r: f32, v_rel: vec3<f32>) -> vec4<f32> {
+    if (r >= params.capsule_dx_solid || all(n == vec3<f32>(0.0))) {
+        return vec4<f32>(0.0);
+    }
+    let w = w_poly6(params.k_liquid, r);
+    let depth = 0.25 * params.capsule_dx_liquid;
+    let sd = dot3(xij, n);
+    if (sd <= -depth || sd >= depth) {
+        return vec4<f32>(0.0, 0.0, 0.0, w);
+    }
+    let v_target = -max(sd, 0.0) / (CAPSULE_SEAL_STEPS * params.dt_upper);
+    let excess = dot3(v_rel, n) - v_target;
+    if (excess <= 0.0) {
+        return vec4<f32>(0.0, 0.0, 0.0, w);
+    }
+    return vec4<f32>(n * (w * excess), w);
 }
 
 fn m3_load(m: Mat3Gpu) -> mat3x3<f32> {

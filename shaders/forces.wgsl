@@ -343,6 +343,9 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     // One pass over the solid (R_× ≥ R_l): membrane particles as boundary, and friction (2.17).
     let r2x = kx.r * kx.r;
     var f = vec3<f32>(0.0);
+    // the capsule's seal (forces.rs capsule_seal_pair): Σw and Σ terms over the intact capsule in reach
+    var seal_w = 0.0;
+    var seal_sum = vec3<f32>(0.0);
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
@@ -356,6 +359,11 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
                 let vj = solid_vel[j];
                 if (r < kl.r && (solid_flags[j] & SOLID_MEMBRANE) != 0u) {
                     let n = capsule_normal(solid_f[j], solid_normal0[j].xyz);
+                    if (params.capsule_seal > 0.0 && capsule_seals(j)) {
+                        let sp = capsule_seal_pair(n, xij, r, vi - vj.xyz);
+                        seal_w += sp.w;
+                        seal_sum += sp.xyz;
+                    }
                     if (capsule_inner(n, xij)) {
                         // beneath the capsule: its liquid layers (forces.rs capsule_inner)
                         for (var layer = 0u; layer < params.capsule_liquid_layers; layer++) {
@@ -384,7 +392,13 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     if (params.kbar > 0.0) {
         a -= f / rho;
     }
-    liquid_acc[i] = vec4<f32>(a + g, 0.0);
+    // the seal's 1/(Σw Δt_max) stays in .w for the membrane's reaction (forces_solid)
+    var scale = 0.0;
+    if (seal_w > 0.0) {
+        scale = 1.0 / (seal_w * (CAPSULE_SEAL_STOP_STEPS * params.dt_upper));
+    }
+    a -= seal_sum * scale;
+    liquid_acc[i] = vec4<f32>(a + g, scale);
     if (xsph) {
         let eps = params.xsph_l;
         liquid_vel_adv[i] = vec4<f32>(select(vi + d_xsph * eps, vi, eps == 0.0), 0.0);
@@ -548,6 +562,7 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
     if (membrane) {
         normal_i = capsule_normal(solid_f[i], solid_normal0[i].xyz);
     }
+    let seals = membrane && params.capsule_seal > 0.0 && capsule_seals(i);
     if (pair_terms || membrane) {
         let r2x = kx.r * kx.r;
         let r2l = kl.r * kl.r;
@@ -590,6 +605,12 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                             let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, vj, vi4.w, vi, -xij, r, -1.0, 0.0, 1.0, g_l,
                                                         params.ambient_pressure);
                             fm -= on_j * mj;
+                        }
+                        let seal_scale = liquid_acc[j].w;
+                        if (seals && seal_scale > 0.0) {
+                            // the reaction of the capsule's seal on liquid j (forces.rs capsule_seal_pair)
+                            let sp = capsule_seal_pair(normal_i, -xij, r, vj - vi);
+                            fm += sp.xyz * (mj * seal_scale);
                         }
                     }
                 }

@@ -109,11 +109,14 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
     let (a_l, a_s, vx_l, vx_s) = {
         let nb = nbrs(cpu);
         let ctx = force_ctx(cpu, &cpu.params, &cpu.contacts);
-        let (a_l, vx_l) = forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, true);
-        let (a_s, vx_s) = forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, true);
+        let st = &cpu.st;
+        let lf = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, true);
+        let (a_l, vx_l, seal) = (lf.a, lf.xsph, lf.seal_scale);
+        let (a_s, vx_s) = forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, true, &seal);
         // evaluation 1's passes (no XSPH) give the same accelerations bit for bit
-        let (a_l1, none_l) = forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, false);
-        let (a_s1, none_s) = forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false);
+        let lf1 = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, false);
+        let (a_l1, none_l) = (lf1.a, lf1.xsph);
+        let (a_s1, none_s) = forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &seal);
         assert!(none_l.is_none() && none_s.is_none());
         assert!(bits3(&a_l1) == bits3(&a_l) && bits3(&a_s1) == bits3(&a_s), "forces differ with and without XSPH");
         (a_l, a_s, vx_l.expect("XSPH velocities"), vx_s.expect("XSPH velocities"))
@@ -122,6 +125,17 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
     cpu.st.solid.a = a_s;
     cpu.st.liquid.vx = vx_l;
     cpu.st.solid.vx = vx_s;
+}
+
+/// One evaluation of `cpu`'s state on a GPU solver built from it and on the CPU (`cpu_evaluate`): the
+/// GPU's liquid and solid accelerations (the CPU's are left in `cpu`).
+fn evaluate_both(ctx: GpuContext, cpu: &mut CpuSolver) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut gpu = gpu_from(ctx, cpu);
+    gpu.run_stages(passes::EVALUATE).expect("GPU evaluation");
+    cpu_evaluate(cpu);
+    let al: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidAcc, cpu.st.liquid.x.len()).expect("liquid a");
+    let as_: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, cpu.st.solid.x.len()).expect("solid a");
+    (al.iter().map(xyz).collect(), as_.iter().map(xyz).collect())
 }
 
 /// The force passes' context for `cpu`'s scene with parameters `p` and pressure modes `contacts`
@@ -611,25 +625,19 @@ fn surface_tension_forces_match_cpu() {
     gpu_test("surface_tension_forces_match_cpu", |ctx| {
         let sc = wicking_block();
         let mut cpu = stepped(solver_for(&sc), 20);
-        let mut gpu = gpu_from(ctx, &cpu);
-        gpu.run_stages(passes::EVALUATE).unwrap();
-        cpu_evaluate(&mut cpu);
+        let (al, as_) = evaluate_both(ctx, &mut cpu);
         let (l, s) = (&cpu.st.liquid, &cpu.st.solid);
-        let al: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidAcc, l.x.len()).unwrap();
-        let as_: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, s.x.len()).unwrap();
-        let v3 = |v: &[[f32; 4]]| v.iter().map(xyz).collect::<Vec<Vec3>>();
-        let d_al = max_vec_diff(&v3(&al), &l.a);
-        let d_as = max_vec_diff(&v3(&as_), &s.a);
+        let d_al = max_vec_diff(&al, &l.a);
+        let d_as = max_vec_diff(&as_, &s.a);
         // The same state without the surface-tension terms: how much they contribute.
         let without = |f: &dyn Fn(&mut perfuse::sim::params::Params)| {
             let mut p = cpu.params.clone();
             f(&mut p);
             let nb = nbrs(&cpu);
             let ctx = force_ctx(&cpu, &p, &cpu.contacts);
-            (
-                forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, false).0,
-                forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false).0,
-            )
+            let lf = forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, false);
+            let st = &cpu.st;
+            (lf.a, forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &lf.seal_scale).0)
         };
         let (a_l0, a_s0) = without(&|p| {
             p.wicking = 0.0;
@@ -677,7 +685,9 @@ fn wall_friction_matches_cpu() {
             let contacts: Vec<_> = cpu.contacts.iter().map(|c| ObjectContact { friction: -1.0, ..*c }).collect();
             let nb = nbrs(&cpu);
             let ctx = force_ctx(&cpu, &cpu.params, &contacts);
-            forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false).0
+            let st = &cpu.st;
+            let seal = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, false).seal_scale;
+            forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &seal).0
         };
         let part = max_vec_diff(&spec_contact, &s.a);
         // The stick regime returns −v_t/Δt_up: velocity rounding (~1e-6 of max |v| after the
@@ -817,6 +827,76 @@ fn stiff_capsule_matches_cpu() {
         );
         assert!(d_x <= 1e-3 * h, "positions diverged");
         assert!(d_f <= 1e-4, "deformation gradients diverged");
+    });
+}
+
+/// The capsule's seal (`membrane.seal`, `forces::capsule_seal_pair`) on both back-ends: the perfused
+/// cube under gravity after 50 CPU steps, its blood then given 5 cm/s outward from the cube's centre,
+/// so that the blood in the seal's band beneath the capsule moves out through it. One evaluation: the
+/// liquid and solid accelerations agree within 1e-4 of max |a| plus 1e-6 max |v| / Δt_max (the seal
+/// divides a velocity by Δt_max, which amplifies the velocities' rounding, as wall friction's stick
+/// does), and the seal matters: without it both sets' accelerations differ by far more, on the blood
+/// and, through its reaction, on the capsule, whose forces and the blood's sum to zero.
+#[test]
+fn capsule_seal_matches_cpu() {
+    gpu_test("capsule_seal_matches_cpu", |ctx| {
+        const MEMBRANE: u32 = perfuse::scenario::SolidFlags::MEMBRANE;
+        let sc = perfused_cube_under_gravity(
+            "capsule_seal",
+            "membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483)),",
+        );
+        let mut cpu = stepped(solver_for(&sc), 50);
+        assert_eq!(cpu.params.capsule_seal, 1.0, "membrane.seal is on by default");
+        // the blood stretched about its centre, axis by axis, until its outer layers lie in the capsule's
+        // faces (the seal's band), then moving outward
+        let n = cpu.st.liquid.x.len() as f32;
+        let centre = cpu.st.liquid.x.iter().fold(Vec3::ZERO, |a, x| a + *x) / n;
+        let reach = |xs: &mut dyn Iterator<Item = Vec3>| xs.fold(Vec3::ZERO, |m, x| m.max((x - centre).abs()));
+        let flags = &cpu.st.solid.flags;
+        let capsule =
+            reach(&mut cpu.st.solid.x.iter().zip(flags).filter(|(_, f)| **f & MEMBRANE != 0).map(|(x, _)| *x));
+        let stretch = capsule / reach(&mut cpu.st.liquid.x.iter().copied());
+        for (x, v) in cpu.st.liquid.x.iter_mut().zip(cpu.st.liquid.v.iter_mut()) {
+            *x = centre + (*x - centre) * stretch;
+            *v = (*x - centre).normalize_or_zero() * 0.05;
+        }
+        cpu.build_grids();
+        let (al, as_) = evaluate_both(ctx, &mut cpu);
+        let (l, s) = (&cpu.st.liquid, &cpu.st.solid);
+        let (d_al, d_as) = (max_vec_diff(&al, &l.a), max_vec_diff(&as_, &s.a));
+        let (without_l, without_s) = {
+            let mut p0 = cpu.params.clone();
+            p0.capsule_seal = 0.0;
+            let nb = nbrs(&cpu);
+            let ctx = force_ctx(&cpu, &p0, &cpu.contacts);
+            let st = &cpu.st;
+            let lf = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, false);
+            (lf.a, forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &lf.seal_scale).0)
+        };
+        let (part_l, part_s) = (max_vec_diff(&without_l, &l.a), max_vec_diff(&without_s, &s.a));
+        let sealed = l.a.iter().zip(&without_l).filter(|(a, b)| (**a - **b).length() > 0.0).count();
+        // the seal's forces on the blood and their reactions on the capsule sum to zero
+        let (mut net, mut gross) = (Vec3::ZERO, 0.0f32);
+        let forces_l = l.a.iter().zip(&without_l).zip(&l.m).map(|((a, b), m)| (*a - *b) * *m);
+        for f in forces_l.chain(s.a.iter().zip(&without_s).zip(&s.m).map(|((a, b), m)| (*a - *b) * *m)) {
+            net += f;
+            gross += f.length();
+        }
+        let dt_up = cpu.params.dt_upper();
+        let tol = |a: &[Vec3], v: &[Vec3]| 1e-4 * max_len(a) + 1e-6 * max_len(v) / dt_up;
+        let (tol_l, tol_s) = (tol(&l.a, &l.v), tol(&s.a, &s.v.iter().chain(&l.v).copied().collect::<Vec<_>>()));
+        eprintln!(
+            "capsule seal: {sealed} of {} liquid sealed; liquid a {d_al:.3e} (tolerance {tol_l:.3e}, the seal's part \
+             {part_l:.3e}), solid a {d_as:.3e} (tolerance {tol_s:.3e}, the seal's part {part_s:.3e}); net force \
+             {:.3e} N of {gross:.3e} N",
+            l.x.len(),
+            net.length()
+        );
+        assert!(sealed > 0 && part_l > 100.0 * tol_l, "the scene must exercise the seal on the blood");
+        assert!(part_s > 100.0 * tol_s, "the scene must exercise the seal's reaction on the capsule");
+        assert!(net.length() <= 1e-4 * gross, "the seal's net force {net} (gross {gross})");
+        assert!(d_al <= tol_l, "liquid accelerations differ by {d_al:e}");
+        assert!(d_as <= tol_s, "solid accelerations differ by {d_as:e}");
     });
 }
 
@@ -1048,7 +1128,9 @@ fn outlet_and_ambient_pressure_match_cpu() {
         let a0 = {
             let nb = nbrs(&cpu);
             let ctx = force_ctx(&cpu, &p0, &cpu.contacts);
-            forces::forces_solid(&ctx, &cpu.st.solid, &cpu.st.liquid, &cpu.st.boundary, &nb, false).0
+            let st = &cpu.st;
+            let seal = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, false).seal_scale;
+            forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &seal).0
         };
         let share = max_vec_diff(&a0, &s.a);
         eprintln!(

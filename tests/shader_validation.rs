@@ -136,8 +136,31 @@ fn scan_chunk_matches_rust() {
     assert_eq!(u32_constant("grid", "SCAN_CHUNK"), perfuse::sim::gpu::passes::SCAN_CHUNK);
 }
 
+/// The steps over which the capsule's seal walks blood back to the capsule's plane and stops it: the
+/// shader's and its CPU twin's are the same numbers.
+#[test]
+fn capsule_seal_steps_match_rust() {
+    use perfuse::sim::cpu::forces::{CAPSULE_SEAL_STEPS, CAPSULE_SEAL_STOP_STEPS};
+    for (name, rust) in
+        [("CAPSULE_SEAL_STEPS", CAPSULE_SEAL_STEPS), ("CAPSULE_SEAL_STOP_STEPS", CAPSULE_SEAL_STOP_STEPS)]
+    {
+        match literal("forces", name) {
+            naga::Literal::F32(v) => assert_eq!(v, rust, "{name}"),
+            other => panic!("{name} is {other:?}, not an f32 literal"),
+        }
+    }
+}
+
 /// The value of the u32 constant `name` of shader family `family` (a literal in the WGSL).
 fn u32_constant(family: &str, name: &str) -> u32 {
+    match literal(family, name) {
+        naga::Literal::U32(v) => v,
+        other => panic!("{name} is {other:?}, not a u32 literal"),
+    }
+}
+
+/// The literal that initialises the constant `name` of shader family `family`.
+fn literal(family: &str, name: &str) -> naga::Literal {
     let module = validate(family).unwrap_or_else(|e| panic!("{e}"));
     let c = module
         .constants
@@ -146,7 +169,7 @@ fn u32_constant(family: &str, name: &str) -> u32 {
         .map(|(_, c)| c.init)
         .unwrap_or_else(|| panic!("{name} in {family}.wgsl"));
     match module.global_expressions[c] {
-        naga::Expression::Literal(naga::Literal::U32(v)) => v,
-        ref e => panic!("{name} is {e:?}, not a u32 literal"),
+        naga::Expression::Literal(l) => l,
+        ref e => panic!("{name} is {e:?}, not a literal"),
     }
 }

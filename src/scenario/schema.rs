@@ -669,13 +669,29 @@ pub struct Membrane {
     /// so a ratio > 1 gives that layer a sheet stiffness of the capsule's order (README: deviations).
     #[serde(default = "unit_ratio")]
     pub stiffness: f64,
+    /// The capsule's seal (default true; README: deviations from SPEC): liquid within a quarter of its
+    /// spacing of an intact capsule particle's plane, or just beyond it, cannot move outward through
+    /// it (`forces::capsule_seal`). `false`: the thesis's capsule, which holds blood only by its mirror
+    /// pressure, and seeps where that pressure is zero.
+    #[serde(default = "yes")]
+    pub seal: bool,
 }
 fn unit_ratio() -> f64 {
     1.0
 }
+fn yes() -> bool {
+    true
+}
 impl Default for Membrane {
     fn default() -> Self {
-        Membrane { threshold: 0.5, count: 3, radius: 0.5, angle: std::f64::consts::FRAC_PI_4, stiffness: 1.0 }
+        Membrane {
+            threshold: 0.5,
+            count: 3,
+            radius: 0.5,
+            angle: std::f64::consts::FRAC_PI_4,
+            stiffness: 1.0,
+            seal: true,
+        }
     }
 }
 

@@ -61,6 +61,8 @@ pub struct Params {
     pub capsule_dx_liquid: f32,
     pub capsule_solid_layers: u32,
     pub capsule_dx_solid: f32,
+    /// The capsule's seal (`membrane.seal`, `forces::capsule_seal`): 1 on, 0 off.
+    pub capsule_seal: f32,
     pub k_s: f32,
     pub k_sat: f32,
     pub n_sat: f32,
@@ -364,6 +366,10 @@ impl Params {
                 _ => 0,
             },
             capsule_dx_solid: g.dx_solid as f32,
+            capsule_seal: match &s.membrane {
+                Some(m) if m.seal && g.dx_liquid > 0.0 && g.dx_solid > 0.0 => 1.0,
+                _ => 0.0,
+            },
             k_s: k_s as f32,
             k_sat: k_sat as f32,
             n_sat: n_sat as f32,

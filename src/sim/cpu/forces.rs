@@ -407,6 +407,60 @@ pub fn capsule_solid_layers(p: &Params, n: Vec3, xij: Vec3, radius: f32, mut f: 
     }
 }
 
+/// Steps over which the capsule's seal walks liquid that lies beyond the capsule's plane back to it
+/// ([`capsule_seal_pair`]).
+pub const CAPSULE_SEAL_STEPS: f32 = 32.0;
+
+/// Steps (of Δt_max) over which the capsule's seal stops liquid moving out through the capsule: a few,
+/// so that blood draining onto the capsule at ≈ 1 cm/s does not strike it in a single step (which
+/// shook the default liver's capsule), and few enough that it moves microns into the band meanwhile.
+pub const CAPSULE_SEAL_STOP_STEPS: f32 = 4.0;
+
+/// Whether membrane particle j still seals: three quarters of its bonds intact (SPEC §4.6). A capsule
+/// torn by a blade or a projectile stops sealing there, and blood leaves through the wound. Twin of
+/// `capsule_seals` in common.wgsl.
+#[inline]
+pub fn capsule_seals(bond_count: u32, bond_count0: u32) -> bool {
+    4 * bond_count >= 3 * bond_count0
+}
+
+/// The capsule's seal (`membrane.seal`; README: deviations from SPEC). The thesis's capsule holds its
+/// blood by the mirror pressure of its particles alone (SPEC §4.1), which is max(p, 0): blood that
+/// has drained to a face or an edge of the organ, unsaturated there and so at p = 0, crossed it at the
+/// Darcy speed, a few particles per 10⁴ steps (`perfuse validate --case capsule`). The seal makes the
+/// intact capsule impermeable to liquid moving outward through it: for liquid i within the capsule's
+/// spacing Δx_s of an intact membrane particle j (`capsule_seals`) whose plane it lies in the band
+/// −δ < (x_i − x_j)·n̂ < δ, δ = Δx_l/4 (the liquid rests Δx_l/2 beneath the capsule:
+/// `keep_liquid_beneath_capsule`), the outward normal velocity relative to j is removed within
+/// [`CAPSULE_SEAL_STOP_STEPS`] steps — beneath the plane all of it; beyond the plane (blood generated there, or a step's drift) all
+/// above a target that walks i back to the plane in [`CAPSULE_SEAL_STEPS`] steps. Liquid in the band
+/// is never pushed inward: a `PerfusedBlock`'s outer liquid layer, generated 0.06Δx_s beneath the
+/// capsule, stays where it is.
+/// Returns j's weight w = W_P(r; h_l) (0 beyond the reach) and its term w·(v_n − v_target)⁺ n̂; the
+/// liquid's acceleration is −Σ terms / (Σ w · s Δt_max), s = [`CAPSULE_SEAL_STOP_STEPS`], where Δt_max
+/// is `Params::dt_upper` and the sums
+/// run over the intact membrane particles within reach, and j receives the reaction. `xij` = x_i − x_j,
+/// `v_rel` = v_i − v_j, `n` j's outward normal (`capsule_normal`). Twin of `capsule_seal_pair` in
+/// common.wgsl.
+#[inline]
+pub fn capsule_seal_pair(p: &Params, n: Vec3, xij: Vec3, r: f32, v_rel: Vec3) -> (f32, Vec3) {
+    if r >= p.capsule_dx_solid || n == Vec3::ZERO {
+        return (0.0, Vec3::ZERO);
+    }
+    let w = p.k_liquid.w_poly6(r);
+    let depth = 0.25 * p.capsule_dx_liquid;
+    let sd = xij.dot(n);
+    if sd <= -depth || sd >= depth {
+        return (w, Vec3::ZERO);
+    }
+    let v_target = -sd.max(0.0) / (CAPSULE_SEAL_STEPS * p.dt_upper());
+    let excess = v_rel.dot(n) - v_target;
+    if excess <= 0.0 {
+        return (w, Vec3::ZERO);
+    }
+    (w, n * (w * excess))
+}
+
 /// Monaghan's (2000) artificial pressure of a liquid pair under tension (`numerics.liquid_artificial_
 /// pressure`; README: deviations from SPEC): (R_i + R_j) f_ij^n with R = ε max(0, −p/ρ²), the liquid's
 /// form of the solid's artificial stress (2.59)–(2.60), and f_ij = W_C(r; h_l)/W_C(Δx_l; h_l). Added to
@@ -454,12 +508,13 @@ pub fn forces_liquid(
     b: &BoundarySet,
     nb: &Nbrs,
     xsph: bool,
-) -> (Vec<Vec3>, Option<Vec<Vec3>>) {
+) -> LiquidForces {
     let p = c.p;
     let kl = &p.k_liquid;
     let kx = &p.k_cross;
     let g = if c.gravity_liquid { c.gravity } else { Vec3::ZERO };
-    let (a, vx): (Vec<Vec3>, Vec<Vec3>) = (0..l.x.len())
+    let seal = p.capsule_seal > 0.0;
+    let (a, (vx, seal_scale)): (Vec<Vec3>, (Vec<Vec3>, Vec<f32>)) = (0..l.x.len())
         .into_par_iter()
         .with_min_len(super::MIN_PAR_LEN)
         .map(|i| {
@@ -468,7 +523,7 @@ pub fn forces_liquid(
                 // an outlet's buffer feels no force; evaluation 0 gives it the velocity of the liquid
                 // around it as its ṽ (the predictor makes it its v: `integrate_predict`)
                 let u = if xsph { outlet_velocity(p, o, c.outlets, l, nb, i) } else { vi };
-                return (Vec3::ZERO, u);
+                return (Vec3::ZERO, (u, 0.0));
             }
             let pi = pr / (rho * rho);
             let inv_m = 1.0 / l.m[i];
@@ -521,11 +576,17 @@ pub fn forces_liquid(
             });
             // One pass over the solid (R_× ≥ R_l): membrane particles as boundary, and friction (2.17).
             let mut f = Vec3::ZERO;
+            let (mut seal_w, mut seal_sum) = (0.0f32, Vec3::ZERO);
             nb.solid.for_each(xi, kx.r, |j, xij, r| {
                 if r < kl.r && s.flags[j] & SolidFlags::MEMBRANE != 0 {
                     let (m_b, vb) = (s.m_bl[j], s.v[j]);
                     let mirror = ObjectContact::MIRROR;
                     let n = capsule_normal(s.def_grad[j], s.normal0[j]);
+                    if seal && capsule_seals(s.bond_count[j], s.bond_count0[j]) {
+                        let (w, term) = capsule_seal_pair(p, n, xij, r, vi - vb);
+                        seal_w += w;
+                        seal_sum += term;
+                    }
                     if capsule_inner(p, n, xij) {
                         // beneath the capsule: its liquid layers (`capsule_inner`)
                         capsule_liquid_layers(p, n, xij, kl.r, |xig, rg| {
@@ -547,10 +608,22 @@ pub fn forces_liquid(
             if p.kbar > 0.0 {
                 a -= f / rho;
             }
-            (a + g, xsph_velocity(vi, d_xsph, p.xsph_l))
+            // the capsule's seal (`capsule_seal_pair`): 1/(Σw Δt_max), kept for the membrane's reaction
+            let scale = if seal_w > 0.0 { 1.0 / (seal_w * (CAPSULE_SEAL_STOP_STEPS * p.dt_upper())) } else { 0.0 };
+            a -= seal_sum * scale;
+            (a + g, (xsph_velocity(vi, d_xsph, p.xsph_l), scale))
         })
         .unzip();
-    (a, xsph.then_some(vx))
+    LiquidForces { a, xsph: xsph.then_some(vx), seal_scale }
+}
+
+/// What `forces_liquid` returns: accelerations, XSPH velocities (evaluation 0), and per particle the
+/// capsule seal's 1/(Σw Δt_max) (0 where no intact capsule is within reach), which the membrane's
+/// reaction in `forces_solid` needs (on the GPU: `liquid_acc.w`).
+pub struct LiquidForces {
+    pub a: Vec<Vec3>,
+    pub xsph: Option<Vec<Vec3>>,
+    pub seal_scale: Vec<f32>,
 }
 
 /// Velocity of a liquid particle i in outlet `o`'s buffer: along the outlet's normal, the normal part
@@ -606,6 +679,7 @@ pub fn forces_solid(
     b: &BoundarySet,
     nb: &Nbrs,
     xsph: bool,
+    seal_scale: &[f32],
 ) -> (Vec<Vec3>, Option<Vec<Vec3>>) {
     let p = c.p;
     let ks = &p.k_solid;
@@ -713,6 +787,7 @@ pub fn forces_solid(
             let pair_terms = p.kbar > 0.0 || p.wicking > 0.0;
             let membrane = s.flags[i] & SolidFlags::MEMBRANE != 0;
             let normal_i = if membrane { capsule_normal(s.def_grad[i], s.normal0[i]) } else { Vec3::ZERO };
+            let seals = membrane && p.capsule_seal > 0.0 && capsule_seals(s.bond_count[i], s.bond_count0[i]);
             if pair_terms || membrane {
                 let r2l = kl.r * kl.r;
                 let (mut f, mut fw, mut fm) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
@@ -741,6 +816,11 @@ pub fn forces_solid(
                                 liquid_from_boundary(p, rho_j, p_j, nl_j, v_j, m_b, vi, xjb, r, mirror, 1.0, g_l, p_a);
                             fm -= on_j * l.m[j];
                         }
+                        if seals && seal_scale[j] > 0.0 {
+                            // the reaction of the capsule's seal on liquid j (`capsule_seal_pair`)
+                            let (_, term) = capsule_seal_pair(p, normal_i, xjb, r, v_j - vi);
+                            fm += term * (l.m[j] * seal_scale[j]);
+                        }
                     }
                 });
                 if pair_terms {
@@ -760,4 +840,59 @@ pub fn forces_solid(
         })
         .unzip();
     (a, xsph.then_some(vx))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::{Scenario, generate};
+
+    /// Parameters of a perfused block with a capsule (Δx = 2 mm on both lattices).
+    fn capsule_params() -> Params {
+        let text = "Scenario(name: \"t\", dimensions: 3, domain: Domain(min: (-0.02, -0.02, -0.02), max: (0.02, 0.02, 0.02)), \
+             liquid: Some(Liquid(density: 1000.0, viscosity: 0.0035, sound_speed: Some(10.0))), \
+             solid: Some(Solid(density: 1000.0, c10: 1e3, c01: 0.0, k_s: 1e4, n_sat: 0.7, k_sat: 1e4, friction: 1e6)), \
+             numerics: Numerics(dx_liquid: Some(0.002), dx_solid: Some(0.002)), \
+             particles: [PerfusedBlock(min: (-0.006, -0.006, -0.006), max: (0.006, 0.006, 0.006), solid_fraction: 0.7, liquid_fraction: 0.3)], \
+             membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483)), duration: 1.0)";
+        let sc = Scenario::from_str_named(text, "test").expect("valid test scenario");
+        Params::new(&sc, &generate(&sc))
+    }
+
+    /// The seal's rule for one membrane particle (normal +z) and liquid at depth `sd` along it moving
+    /// at `vz`: beneath the plane it removes the outward velocity, never an inward one; beyond the plane
+    /// it also walks the particle back in `CAPSULE_SEAL_STEPS` steps; outside its band and reach it
+    /// acts on nothing, but the particle still counts in the weights.
+    #[test]
+    fn the_seal_removes_outward_motion_through_the_capsule_only() {
+        let p = capsule_params();
+        assert_eq!(p.capsule_seal, 1.0, "membrane.seal is on by default");
+        let (dx_l, dt) = (p.capsule_dx_liquid, p.dt_upper());
+        let n = Vec3::Z;
+        let term = |sd: f32, lateral: f32, vz: f32| {
+            let xij = Vec3::new(lateral, 0.0, sd);
+            capsule_seal_pair(&p, n, xij, xij.length(), Vec3::new(0.3, 0.0, vz))
+        };
+        let lateral = 0.3 * dx_l;
+        let w = |sd: f32| p.k_liquid.w_poly6(Vec3::new(lateral, 0.0, sd).length());
+        // beneath the plane, in the band, moving out at 2 cm/s: all of it
+        let (wt, t) = term(-0.1 * dx_l, lateral, 0.02);
+        assert_eq!(wt, w(-0.1 * dx_l));
+        assert!((t - n * (wt * 0.02)).length() <= 1e-6 * wt * 0.02, "{t}");
+        // moving in, or at rest beneath the plane: nothing (a PerfusedBlock's outer layer stays put)
+        assert_eq!(term(-0.1 * dx_l, lateral, -0.02).1, Vec3::ZERO);
+        assert_eq!(term(-0.1 * dx_l, lateral, 0.0).1, Vec3::ZERO);
+        // beyond the plane at rest: the walk back, sd / (steps Δt_max)
+        let sd = 0.2 * dx_l;
+        let (wt, t) = term(sd, lateral, 0.0);
+        let back = sd / (CAPSULE_SEAL_STEPS * dt);
+        assert!((t.z - wt * back).abs() <= 1e-5 * wt * back, "{} against {}", t.z, wt * back);
+        // outside the band (half a spacing beneath, as the liquid rests; or bled out) and beyond the reach
+        assert_eq!(term(-0.5 * dx_l, lateral, 0.02).1, Vec3::ZERO);
+        assert!(term(-0.5 * dx_l, lateral, 0.02).0 > 0.0, "a resting neighbour still weighs");
+        assert_eq!(term(0.3 * dx_l, lateral, 0.02).1, Vec3::ZERO);
+        assert_eq!(term(0.0, 1.01 * p.capsule_dx_solid, 0.02), (0.0, Vec3::ZERO));
+        // a capsule particle with more than a quarter of its bonds broken no longer seals
+        assert!(capsule_seals(30, 40) && !capsule_seals(29, 40) && capsule_seals(0, 0));
+    }
 }

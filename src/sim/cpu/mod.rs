@@ -522,10 +522,11 @@ impl CpuSolver {
             gravity_liquid: !(self.st.damping > 0.0 && self.st.damping_solid_gravity_only),
             outlets: self.outlets(),
         };
-        let (a_l, vx_l) =
+        let forces::LiquidForces { a: a_l, xsph: vx_l, seal_scale } =
             forces::forces_liquid(&ctx, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb, with_xsph);
         let (a_s, vx_s) = if p.solid_dynamic {
-            forces::forces_solid(&ctx, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb, with_xsph)
+            let (st, scale) = (&self.st, &seal_scale);
+            forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, with_xsph, scale)
         } else {
             (vec![Vec3::ZERO; self.st.solid.x.len()], None)
         };

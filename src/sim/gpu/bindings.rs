@@ -71,11 +71,14 @@ pub enum Slot {
     /// A membrane particle's outward normal in the generated configuration (`SolidSet::normal0`;
     /// static): the direction of the capsule's virtual layers.
     SolidNormal0,
+    /// Each solid particle's bond count in the generated configuration (`SolidSet::bond_count0`;
+    /// static): whether a membrane particle still seals (`capsule_seals`).
+    BondCount0,
 }
 
 impl Slot {
     /// The slot with the highest binding number (sizes the slot table).
-    pub const LAST: Slot = Slot::SolidNormal0;
+    pub const LAST: Slot = Slot::BondCount0;
 
     /// Binding number in group 0 (common.wgsl).
     pub const fn binding(self) -> u32 {
@@ -137,6 +140,7 @@ impl Slot {
             Slot::BedTable => "bed_table",
             Slot::LiquidScratch => "liquid_scratch",
             Slot::SolidNormal0 => "solid_normal0",
+            Slot::BondCount0 => "bond_count0",
         }
     }
 
@@ -186,5 +190,6 @@ mod tests {
         assert_eq!(Slot::BedTable.binding(), 49);
         assert_eq!(Slot::LiquidScratch.binding(), 50);
         assert_eq!(Slot::SolidNormal0.binding(), 51);
+        assert_eq!(Slot::BondCount0.binding(), 52);
     }
 }

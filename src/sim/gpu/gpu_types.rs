@@ -127,6 +127,11 @@ pub struct SimParams {
     pub capsule_dx_liquid: f32,
     pub capsule_solid_layers: u32,
     pub capsule_dx_solid: f32,
+    /// `Params::capsule_seal`.
+    pub capsule_seal: f32,
+    pub _pad_seal0: f32,
+    pub _pad_seal1: f32,
+    pub _pad_seal2: f32,
 }
 
 /// Set counts of a scene, as the uniform block carries them.
@@ -247,6 +252,10 @@ impl SimParams {
             capsule_dx_liquid: p.capsule_dx_liquid,
             capsule_solid_layers: p.capsule_solid_layers,
             capsule_dx_solid: p.capsule_dx_solid,
+            capsule_seal: p.capsule_seal,
+            _pad_seal0: 0.0,
+            _pad_seal1: 0.0,
+            _pad_seal2: 0.0,
         }
     }
 }
@@ -503,7 +512,7 @@ pub struct GridSet {
 }
 
 const _: () = assert!(size_of::<KernelConsts>() == 32);
-const _: () = assert!(size_of::<SimParams>() == 688);
+const _: () = assert!(size_of::<SimParams>() == 704);
 // common.wgsl's `tension: array<vec4<f32>, 8>` and density.wgsl's loop over 4 regions
 const _: () = assert!(MAX_TENSION_REGIONS == 4);
 // common.wgsl's `outlet: array<vec4<f32>, 6>` and outlet_find's loop over 2 outlets

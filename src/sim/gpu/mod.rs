@@ -451,6 +451,7 @@ impl GpuSolver {
         out.push((Slot::SolidAffine, bytes(&fit)));
         out.push((Slot::BondTable, bytes(&s.bonds)));
         out.push((Slot::BondCount, bytes(&s.bond_count)));
+        out.push((Slot::BondCount0, bytes(&s.bond_count0)));
         out.push((Slot::BondLimit, bytes(&s.bond_limit)));
         out.push((Slot::BoundaryPos, bytes(&zip4(&b.x, &|i| b.m_l[i]))));
         out.push((Slot::BoundaryVel, bytes(&zip4(&b.v, &|i| b.m_s[i]))));
