@@ -2,7 +2,8 @@
 //!
 //! Liquid (2.50): −nˡ∇p with the spiky kernel (D-15, D-16), mirrored boundary pressure (§4.1, D-23),
 //! viscosity κ_V(η/ρ_i)Σ(m_j/ρ_j)(v_j − v_i)∇²W_V (D-7, D-17), pairwise friction (2.17, D-18), g, and
-//! when enabled the surface tension (3.3) and the liquid–void attraction (3.4) (§3.12).
+//! when enabled the surface tension (3.3) and the liquid–void attraction (3.4) (§3.12); the capsule's
+//! layers and its seal (`capsule_inner`, `capsule_seal_pair`; README: deviations from SPEC).
 //! Solid (2.48): deviatoric stress over bonds, −nˢ∇p, artificial stress (2.59)–(2.60), artificial
 //! viscosity (2.54)–(2.58) over current neighbours, boundary contact, friction and attraction reactions,
 //! membrane reactions gathered from the liquid (§4.1: no atomics), g. XSPH (2.69) for both, in
@@ -432,16 +433,16 @@ pub fn capsule_seals(bond_count: u32, bond_count0: u32) -> bool {
 /// spacing Δx_s of an intact membrane particle j (`capsule_seals`) whose plane it lies in the band
 /// −δ < (x_i − x_j)·n̂ < δ, δ = Δx_l/4 (the liquid rests Δx_l/2 beneath the capsule:
 /// `keep_liquid_beneath_capsule`), the outward normal velocity relative to j is removed within
-/// [`CAPSULE_SEAL_STOP_STEPS`] steps — beneath the plane all of it; beyond the plane (blood generated there, or a step's drift) all
-/// above a target that walks i back to the plane in [`CAPSULE_SEAL_STEPS`] steps. Liquid in the band
-/// is never pushed inward: a `PerfusedBlock`'s outer liquid layer, generated 0.06Δx_s beneath the
-/// capsule, stays where it is.
-/// Returns j's weight w = W_P(r; h_l) (0 beyond the reach) and its term w·(v_n − v_target)⁺ n̂; the
-/// liquid's acceleration is −Σ terms / (Σ w · s Δt_max), s = [`CAPSULE_SEAL_STOP_STEPS`], where Δt_max
-/// is `Params::dt_upper` and the sums
-/// run over the intact membrane particles within reach, and j receives the reaction. `xij` = x_i − x_j,
-/// `v_rel` = v_i − v_j, `n` j's outward normal (`capsule_normal`). Twin of `capsule_seal_pair` in
-/// common.wgsl.
+/// [`CAPSULE_SEAL_STOP_STEPS`] steps — beneath the plane all of it; beyond the plane (blood generated
+/// there, or a step's drift) all above a target that walks i back to the plane in
+/// [`CAPSULE_SEAL_STEPS`] steps. Liquid in the band is never pushed inward: a `PerfusedBlock`'s outer
+/// liquid layer, generated 0.06Δx_s beneath the capsule, stays where it is.
+///
+/// Returns j's weight w = W_P(r; h_l) (0 beyond the reach) and its term w·(v_n − v_target)⁺ n̂. The
+/// liquid's acceleration is −Σ terms / (Σ w · s Δt_max), s = [`CAPSULE_SEAL_STOP_STEPS`], Δt_max =
+/// `Params::dt_upper`, the sums over the intact membrane particles within reach; j receives the
+/// reaction. `xij` = x_i − x_j, `v_rel` = v_i − v_j, `n` j's outward normal (`capsule_normal`). Twin of
+/// `capsule_seal_pair` in common.wgsl.
 #[inline]
 pub fn capsule_seal_pair(p: &Params, n: Vec3, xij: Vec3, r: f32, v_rel: Vec3) -> (f32, Vec3) {
     if r >= p.capsule_dx_solid || n == Vec3::ZERO {
@@ -608,7 +609,7 @@ pub fn forces_liquid(
             if p.kbar > 0.0 {
                 a -= f / rho;
             }
-            // the capsule's seal (`capsule_seal_pair`): 1/(Σw Δt_max), kept for the membrane's reaction
+            // the capsule's seal (`capsule_seal_pair`): 1/(Σw s Δt_max), kept for the membrane's reaction
             let scale = if seal_w > 0.0 { 1.0 / (seal_w * (CAPSULE_SEAL_STOP_STEPS * p.dt_upper())) } else { 0.0 };
             a -= seal_sum * scale;
             (a + g, (xsph_velocity(vi, d_xsph, p.xsph_l), scale))
@@ -618,7 +619,7 @@ pub fn forces_liquid(
 }
 
 /// What `forces_liquid` returns: accelerations, XSPH velocities (evaluation 0), and per particle the
-/// capsule seal's 1/(Σw Δt_max) (0 where no intact capsule is within reach), which the membrane's
+/// capsule seal's 1/(Σw s Δt_max) (`capsule_seal_pair`; 0 where no intact capsule is within reach), which the membrane's
 /// reaction in `forces_solid` needs (on the GPU: `liquid_acc.w`).
 pub struct LiquidForces {
     pub a: Vec<Vec3>,
