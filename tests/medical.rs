@@ -120,7 +120,7 @@ fn oozing_drains_onto_the_plate_and_the_top_dries() {
 /// and rises at ≈ 2 cm/s. What keeps it is the connectivity damage (Alg. 2): the bonds broken under
 /// the indenter do not re-form, so the crushed tissue does not spring back. At 8³ (indenter radius
 /// 1.6Δx_s, 2h = 16 mm) the top-centre particles slide aside instead and no dent stays (−0.03 mm); at
-/// 10³ it is 0.83 mm, at 12³ 2.48 mm (2.7 and 4.4 mm before the indenter and the plate counted in the
+/// 10³ it is 0.83 mm (0.97 mm with the capsule's seal, 6 922 bonds broken), at 12³ 2.48 mm (2.7 and 4.4 mm before the indenter and the plate counted in the
 /// solid's nˡ: with as many bonds broken, part of that dent came from the saturation tension of tissue
 /// that saw them as air; README).
 #[test]
@@ -254,7 +254,8 @@ fn liver_scalpel_hangs_the_liver_under_the_blade_over_the_plate() {
 /// (the threshold SPEC sets at 2 s), the tissue within 3Δx_s of the tip moves toward it (SPEC (2)), and
 /// no blood leaks elsewhere (SPEC (3)). 2026-12-06, run to 0.04 s: 7.9, 9.4, 16.9, 21.4·10⁻⁷ m³ (5.0 %),
 /// 0.23 mm toward the tip; run to 0.03 s (the suite's budget; 104 s against 160 s): 7.9, 9.4, 10.9·10⁻⁷ m³
-/// (2.6 %, 29 perfusing particles), 0.085 mm toward the tip, the bore 0.86 full by mass — a draw that the lattices' misfit under the tip drives: with the needle's faces on both
+/// (2.6 %, 29 perfusing particles), 0.085 mm toward the tip, the bore 0.86 full by mass; with the
+/// capsule's seal (session 45) 4.9, 9.4, 16.9·10⁻⁷ m³ (4.0 %, 45 particles), 0.021 mm — a draw that the lattices' misfit under the tip drives: with the needle's faces on both
 /// lattices' planes the same run draws nothing (README: deviations, the syringe). With SPEC's disc over a sink at the barrel's top instead, the
 /// same run drew 6.2·10⁻⁷ m³ (≈ 16 particles) after a transient of a few particles each way at the
 /// tip, and the column under tension parted later (README: `syringe.ron` under Validation). The 2-s
