@@ -25,7 +25,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let frame: f64 = args[3].parse()?;
     let sets: Vec<String> = args[4..].iter().filter(|a| *a != "--set").cloned().collect();
     let sc = Scenario::load_with_overrides(path, &sets)?;
-    let mut sim = Simulation::new(&sc, BackendKind::Cpu)?;
+    let generated = perfuse::scenario::generate(&sc);
+    let normal0 = generated.solid_normal.clone();
+    let mut sim = Simulation::from_generated(&sc, generated, BackendKind::Cpu)?;
     let cache = RelaxedCache::new("/tmp/perfuse-probe-cache2");
     let t0 = std::time::Instant::now();
     let dx = sim.params().dx_solid;
@@ -59,7 +61,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let from = relax_with_cache(Some(&cache), false, &sc, &mut sim, |_| {})?;
         eprintln!("relaxed ({from:?}) in {:.0} s", t0.elapsed().as_secs_f64());
     }
-    let normal0 = perfuse::scenario::generate(&sc).solid_normal;
     let mut last_beyond: Vec<u32>;
     let mut t = sim.time();
     loop {

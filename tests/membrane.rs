@@ -238,7 +238,7 @@ fn a_hanging_perfused_cube_keeps_its_blood_in_its_capsule() {
     let (sc, dir) = hanging_perfused_cube("hanging", 8);
     let g = perfuse::scenario::generate(&sc);
     for backend in [BackendKind::Cpu, BackendKind::Gpu] {
-        let mut sim = Simulation::new(&sc, backend).expect("sim");
+        let mut sim = Simulation::from_generated(&sc, g.clone(), backend).expect("sim");
         sim.advance_until(0.12, u64::MAX, |_| {}).expect("runs");
         let s = sim.read_state().expect("state");
         let beyond = capsule::liquid_beyond_capsule(&s, &g.solid_normal, 0.005);
