@@ -80,7 +80,53 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             s.broken_bonds(),
             t0.elapsed().as_secs_f64()
         );
+        if std::env::var("BBOX").is_ok() {
+            let bb = |v: &[glam::Vec3]| {
+                v.iter().fold((glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN)), |(a, b), p| {
+                    (a.min(*p), b.max(*p))
+                })
+            };
+            eprintln!("  solid bbox {:?} liquid bbox {:?}", bb(&s.solid.pos), bb(&st_l.pos));
+        }
         frames.push((s.t, st_l, s.solid.clone().in_id_order(), s.solid_extra.flags.clone()));
+        if std::env::var("NEIGH").is_ok() && t >= t_end - 1e-9 {
+            let torn: Vec<usize> = (0..s.solid.len())
+                .filter(|&k| s.solid_extra.flags[k] & SolidFlags::MEMBRANE != 0)
+                .filter(|&k| 4 * s.solid_extra.bonds[k] < 3 * s.solid_extra.bonds_initial[k])
+                .collect();
+            let n_memb = (0..s.solid.len()).filter(|&k| s.solid_extra.flags[k] & SolidFlags::MEMBRANE != 0).count();
+            eprintln!("membrane particles {n_memb}, not intact (< 3/4 bonds) {}", torn.len());
+            for &k in torn.iter().take(60) {
+                eprintln!(
+                    "   torn {k} at {:+.4?} n0 {:+.2?} bonds {}/{}",
+                    s.solid.pos[k], normal0[k], s.solid_extra.bonds[k], s.solid_extra.bonds_initial[k]
+                );
+            }
+            // the solid around each particle beyond the capsule: offset/Δx, membrane, cof(F)n̂₀, bonds
+            for i in perfuse::analysis::capsule::beyond_capsule(&s, &normal0, dx) {
+                let x = s.liquid.pos[i];
+                eprintln!("beyond: liquid id {} at {:.4?} v {:.4?}", s.liquid.id[i], x, s.liquid.vel[i]);
+                for k in 0..s.solid.len() {
+                    let d = s.solid.pos[k] - x;
+                    if d.length() < 1.6 * dx {
+                        let memb = s.solid_extra.flags[k] & SolidFlags::MEMBRANE != 0;
+                        let n0 = glam::Vec3::new(normal0[k][0] as f32, normal0[k][1] as f32, normal0[k][2] as f32);
+                        let n = perfuse::sim::cpu::forces::capsule_normal(s.solid_extra.def_grad[k], n0);
+                        eprintln!(
+                            "   solid {k} d/dx {:+.2?} |d| {:.2} memb {memb} n {:+.2?} n0 {:+.2?} bonds {}/{} detF {:.2} (d·n)/dx {:+.2}",
+                            d / dx,
+                            d.length() / dx,
+                            n,
+                            n0,
+                            s.solid_extra.bonds[k],
+                            s.solid_extra.bonds_initial[k],
+                            s.solid_extra.def_grad[k].determinant(),
+                            -d.dot(n) / dx
+                        );
+                    }
+                }
+            }
+        }
         last_beyond = beyond;
         if t >= t_end - 1e-9 {
             break;

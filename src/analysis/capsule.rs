@@ -132,8 +132,37 @@ pub fn indented_specimen(n: usize) -> Result<Scenario, ValidationError> {
 /// outside the capsule's local hull, so that blood beneath an edge, which lies beyond the diagonal
 /// plane of the edge's own particles, is not counted. `normal0` is the generation's
 /// `solid_normal` (the membrane particles' detection offsets).
+///
+/// A membrane particle that has lost more than half its bonds ([`detached_from_capsule`]) no longer
+/// draws the hull: under the indented specimen's sphere a capsule child stripped to 11 of its 109
+/// bonds was punched 3Δx_s into the tissue and stayed there, its normal still +z, and the blood
+/// rising past it between the tissue's 7th and 8th rows (nˢ 0.58, the top rows above it) was
+/// counted beyond the capsule — every one of the 6 the case reported (2026-12-06, session 46).
+/// Blood that leaves through a torn capsule is still counted, against the intact particles around
+/// the tear and, once clear of the tissue, by `liquid_outside`.
 pub fn liquid_beyond_capsule(s: &State, normal0: &[[f64; 3]], dx: f32) -> usize {
     beyond_capsule(s, normal0, dx).len()
+}
+
+/// Whether membrane particle `k` has lost more than half of its bonds, so that it is no longer part
+/// of the capsule's sheet ([`beyond_capsule`]'s hull skips it).
+pub fn detached_from_capsule(s: &State, k: usize) -> bool {
+    match (s.solid_extra.bonds.get(k), s.solid_extra.bonds_initial.get(k)) {
+        (Some(&now), Some(&initial)) => 2 * now < initial,
+        _ => false,
+    }
+}
+
+/// Membrane particles whose capsule is torn by the seal's rule (`forces::capsule_seals`: fewer than
+/// three quarters of their bonds intact), so that there it no longer seals.
+pub fn torn_capsule_particles(s: &State) -> usize {
+    (0..s.solid.len())
+        .filter(|&k| s.solid_extra.flags.get(k).is_some_and(|f| f & SolidFlags::MEMBRANE != 0))
+        .filter(|&k| match (s.solid_extra.bonds.get(k), s.solid_extra.bonds_initial.get(k)) {
+            (Some(&now), Some(&initial)) => !crate::sim::cpu::forces::capsule_seals(now, initial),
+            _ => false,
+        })
+        .count()
 }
 
 /// The indices (into `s.liquid`) of the particles [`liquid_beyond_capsule`] counts.
@@ -141,6 +170,7 @@ pub fn beyond_capsule(s: &State, normal0: &[[f64; 3]], dx: f32) -> Vec<usize> {
     let membrane: Vec<usize> = (0..s.solid.len())
         .filter(|&k| s.solid_extra.flags.get(k).is_some_and(|f| f & SolidFlags::MEMBRANE != 0))
         .filter(|&k| k < normal0.len() && k < s.solid_extra.def_grad.len())
+        .filter(|&k| !detached_from_capsule(s, k))
         .collect();
     (0..s.liquid.len())
         .filter(|&i| {
@@ -192,6 +222,9 @@ pub struct CapsuleOutcome {
     pub beyond_max: usize,
     /// Bonds broken at the end.
     pub broken: u64,
+    /// Membrane particles, and those torn at the end ([`torn_capsule_particles`]).
+    pub membrane: usize,
+    pub torn: usize,
     /// Indented run: depth of the top centre below its start at the indenter's deepest point, over L_c.
     pub depth_over_height: Option<f64>,
     pub invariants_failed: usize,
@@ -205,8 +238,14 @@ pub fn run(sc: &Scenario, backend: BackendKind, which: CapsuleRun, dx: f32) -> R
     let mut sim = Simulation::from_generated(sc, generated, backend)?;
     let (indented, label) = (which == CapsuleRun::Indented, which.name());
     let s0 = sim.read_state()?;
-    let mut o =
-        CapsuleOutcome { run: label.into(), solid: s0.solid.len(), liquid: s0.liquid.len(), ..Default::default() };
+    let membrane = s0.solid_extra.flags.iter().filter(|&&f| f & SolidFlags::MEMBRANE != 0).count();
+    let mut o = CapsuleOutcome {
+        run: label.into(),
+        solid: s0.solid.len(),
+        liquid: s0.liquid.len(),
+        membrane,
+        ..Default::default()
+    };
     let mut inv = Invariants::default();
     inv.check(&sim, &s0);
     // the indented run's top centre (highest particle within Δx_s of the axis) at t = 0
@@ -238,6 +277,7 @@ pub fn run(sc: &Scenario, backend: BackendKind, which: CapsuleRun, dx: f32) -> R
         o.steps = s.steps;
         o.t_end = s.t;
         o.broken = s.broken_bonds();
+        o.torn = torn_capsule_particles(&s);
         pace.log(label, &sim);
         if s.steps >= STEPS && (!indented || k >= 16) {
             break;
@@ -245,12 +285,14 @@ pub fn run(sc: &Scenario, backend: BackendKind, which: CapsuleRun, dx: f32) -> R
     }
     o.invariants_failed = inv.count();
     log::info!(
-        "capsule {label}: {} steps to t = {:.3} s; liquid outside at most {}, beyond the capsule at most {}; {} bonds broken",
+        "capsule {label}: {} steps to t = {:.3} s; liquid outside at most {}, beyond the capsule at most {}; {} bonds broken, {} of {} capsule particles torn",
         o.steps,
         o.t_end,
         o.outside_max,
         o.beyond_max,
-        o.broken
+        o.broken,
+        o.torn,
+        o.membrane
     );
     Ok(o)
 }
@@ -264,6 +306,8 @@ pub fn rows(o: &CapsuleOutcome, wall: f64) -> Vec<CaseResult> {
         at_most(n, r, "liquid_outside_max", o.outside_max as f64, 0.0, wall),
         at_most(n, r, "liquid_beyond_capsule_max", o.beyond_max as f64, 0.0, wall),
         reported(n, r, "broken_bonds", o.broken as f64, wall),
+        reported(n, r, "capsule_particles", o.membrane as f64, wall),
+        reported(n, r, "capsule_particles_torn", o.torn as f64, wall),
         at_most(n, r, "invariant_violations", o.invariants_failed as f64, 0.0, wall),
     ];
     if let Some(d) = o.depth_over_height {
@@ -295,4 +339,45 @@ pub fn validate(
     o.resolution = format!("{n_ind}^3 solid + capsule, {}^3 liquid", n_ind - 1);
     all.extend(rows(&o, started.elapsed().as_secs_f64()));
     Ok(all)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Mat3;
+
+    /// A flat capsule: membrane particles on the plane z = 0 at spacing Δx, normal +z, undeformed,
+    /// with `bonds` of their 100 bonds intact, and liquid at `liquid` (z > 0 is beyond it).
+    fn sheet(bonds: &[u32], liquid: &[Vec3]) -> (State, Vec<[f64; 3]>) {
+        let mut s = State::default();
+        for (k, &b) in bonds.iter().enumerate() {
+            s.solid.pos.push(Vec3::new(k as f32 * 0.01, 0.0, 0.0));
+            s.solid_extra.flags.push(SolidFlags::MEMBRANE);
+            s.solid_extra.def_grad.push(Mat3::IDENTITY);
+            s.solid_extra.bonds.push(b);
+            s.solid_extra.bonds_initial.push(100);
+        }
+        s.liquid.pos = liquid.to_vec();
+        (s, vec![[0.0, 0.0, 1.0]; bonds.len()])
+    }
+
+    #[test]
+    fn blood_is_beyond_the_intact_capsule_only() {
+        let dx = 0.01;
+        let inside = Vec3::new(0.005, 0.0, -0.004);
+        let beyond = Vec3::new(0.005, 0.0, 0.004);
+        // intact and torn (60 of 100 bonds: still on the sheet) particles draw the hull
+        for bonds in [[100, 100], [60, 60]] {
+            let (s, n0) = sheet(&bonds, &[inside, beyond]);
+            assert_eq!(beyond_capsule(&s, &n0, dx), vec![1], "bonds {bonds:?}");
+        }
+        assert_eq!(torn_capsule_particles(&sheet(&[100, 74, 75], &[]).0), 1);
+        // a particle stripped of more than half its bonds has left the sheet: blood over it is not
+        // beyond a capsule, but blood beyond an intact neighbour still is
+        let (s, n0) = sheet(&[49, 49], &[inside, beyond]);
+        assert!(detached_from_capsule(&s, 0));
+        assert_eq!(liquid_beyond_capsule(&s, &n0, dx), 0);
+        let (s, n0) = sheet(&[49, 100], &[inside, beyond]);
+        assert_eq!(liquid_beyond_capsule(&s, &n0, dx), 1);
+    }
 }

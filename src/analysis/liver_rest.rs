@@ -80,6 +80,10 @@ pub fn run(sc: &Scenario, backend: BackendKind) -> Result<RestOutcome, Validatio
         outside_max: relaxed.liquid_outside(),
         ..Default::default()
     };
+    log::info!(
+        "liver_rest: relaxed, t = 0: solid mean speed {:.2} mm/s",
+        relaxed.solid.vel.iter().map(|v| v.length()).sum::<f32>() / relaxed.solid.len().max(1) as f32 * 1e3
+    );
     let mut pace = Pace::new(&sim);
     let mut s = relaxed.clone();
     for k in 1..=5 {
@@ -88,6 +92,14 @@ pub fn run(sc: &Scenario, backend: BackendKind) -> Result<RestOutcome, Validatio
         s = sim.read_state()?;
         inv.check(&sim, &s);
         o.outside_max = o.outside_max.max(s.liquid_outside());
+        let n = s.solid.len().max(1) as f32;
+        log::info!(
+            "liver_rest: t = {:.3} s: solid mean speed {:.2} mm/s, bulk {:.2} mm/s; liquid mean speed {:.2} mm/s",
+            s.t,
+            s.solid.vel.iter().map(|v| v.length()).sum::<f32>() / n * 1e3,
+            (s.solid.vel.iter().copied().sum::<Vec3>() / n).length() * 1e3,
+            s.liquid.vel.iter().map(|v| v.length()).sum::<f32>() / s.liquid.len().max(1) as f32 * 1e3
+        );
         pace.log("liver_rest", &sim);
     }
     let n = s.solid.len().max(1) as f32;
