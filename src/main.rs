@@ -282,7 +282,7 @@ enum Cmd {
         out: PathBuf,
         #[arg(long, value_enum, default_value = "auto")]
         backend: Backend,
-        /// Edit the named case's scenario (liver_scalpel*, projectile, syringe) after its preset, as
+        /// Edit the named case's scenario (liver_scalpel*, projectile, syringe, liver_rest) after its preset, as
         /// `perfuse run --set` does, e.g. `--set numerics.hourglass=0.72`; repeatable; `report.json`
         /// lists the edits under `overrides`.
         #[arg(long = "set", value_name = "FIELD=VALUE")]

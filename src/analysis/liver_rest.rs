@@ -39,10 +39,11 @@ pub fn quick_overrides() -> Vec<String> {
     .collect()
 }
 
-/// `liver.ron` (quick: at 7 mm); its mesh is read from `assets/meshes/` under the working directory, as
-/// the liver_scalpel case reads it.
-pub fn scenario(quick: bool) -> Result<Scenario, ValidationError> {
-    let ov = if quick { quick_overrides() } else { Vec::new() };
+/// `liver.ron` (quick: at 7 mm) with the user's `--set` edits after the preset; its mesh is read from
+/// `assets/meshes/` under the working directory, as the liver_scalpel case reads it.
+pub fn scenario(quick: bool, overrides: &[String]) -> Result<Scenario, ValidationError> {
+    let mut ov = if quick { quick_overrides() } else { Vec::new() };
+    ov.extend(overrides.iter().cloned());
     Ok(Scenario::from_str_with_overrides(LIVER, "assets/scenarios/liver.ron", &ov)?)
 }
 
@@ -94,11 +95,13 @@ pub fn run(sc: &Scenario, backend: BackendKind) -> Result<RestOutcome, Validatio
         o.outside_max = o.outside_max.max(s.liquid_outside());
         let n = s.solid.len().max(1) as f32;
         log::info!(
-            "liver_rest: t = {:.3} s: solid mean speed {:.2} mm/s, bulk {:.2} mm/s; liquid mean speed {:.2} mm/s",
+            "liver_rest: t = {:.3} s: solid mean speed {:.2} mm/s, bulk {:.2?} mm/s; liquid mean speed {:.2} mm/s, \
+             bulk {:.2?} mm/s",
             s.t,
             s.solid.vel.iter().map(|v| v.length()).sum::<f32>() / n * 1e3,
-            (s.solid.vel.iter().copied().sum::<Vec3>() / n).length() * 1e3,
-            s.liquid.vel.iter().map(|v| v.length()).sum::<f32>() / s.liquid.len().max(1) as f32 * 1e3
+            s.solid.vel.iter().copied().sum::<Vec3>() / n * 1e3,
+            s.liquid.vel.iter().map(|v| v.length()).sum::<f32>() / s.liquid.len().max(1) as f32 * 1e3,
+            s.liquid.vel.iter().copied().sum::<Vec3>() / s.liquid.len().max(1) as f32 * 1e3
         );
         pace.log("liver_rest", &sim);
     }
@@ -150,9 +153,10 @@ pub fn validate(
     backend: BackendKind,
     _out: &Path,
     _progress: bool,
+    overrides: &[String],
 ) -> Result<Vec<CaseResult>, ValidationError> {
     let started = Instant::now();
-    let sc = scenario(quick)?;
+    let sc = scenario(quick, overrides)?;
     let o = run(&sc, backend)?;
     let resolution =
         format!("dx {} mm: {} solid (capsule included), {} liquid", if quick { 7 } else { 5 }, o.solid, o.liquid);
