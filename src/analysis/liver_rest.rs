@@ -171,7 +171,7 @@ mod tests {
     /// the ligaments there, the blood inside its capsule.
     #[test]
     fn the_quick_liver_is_the_shipped_scene_coarsened() {
-        let sc = scenario(true).expect("quick liver");
+        let sc = scenario(true, &[]).expect("quick liver");
         let g = crate::scenario::generate(&sc);
         assert_eq!(sc.boundaries.len(), 5);
         assert!(sc.ligaments.is_some() && sc.membrane.is_some() && sc.relaxation.is_some());
