@@ -208,6 +208,7 @@ impl App {
             selected_tool: None,
             last_screenshot: None,
             scrub: None,
+            scenario_warnings: crate::scenario::warnings(&self.opts.scenario),
         };
         ui_state.tools_available = tools_of(&self.opts.scenario);
         let stats = ui::FrameStats {
@@ -526,6 +527,11 @@ impl Gfx {
             }
             ui::UiAction::Load(p) => match Scenario::load(&p) {
                 Ok(s) => {
+                    // on stderr as the command line prints them, and under the picker
+                    self.ui.scenario_warnings = crate::scenario::warnings(&s);
+                    for w in &self.ui.scenario_warnings {
+                        eprintln!("warning: scenario `{}`, {w}", s.name);
+                    }
                     self.ui.current = p;
                     self.ui.tools_available = tools_of(&s);
                     self.ui.selected_tool = None;

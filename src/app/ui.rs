@@ -62,6 +62,8 @@ pub struct UiState {
     pub last_screenshot: Option<String>,
     /// Timeline position (step) while the user drags it (seek on release).
     pub scrub: Option<u64>,
+    /// The loaded scenario's non-fatal notes (`scenario::warnings`), shown under the picker.
+    pub scenario_warnings: Vec<String>,
 }
 
 /// Every shipped scenario (assets/scenarios/*.ron), sorted.
@@ -154,6 +156,13 @@ pub fn panels(
             });
             if let Some(p) = chosen {
                 actions.push(UiAction::Load(p));
+            }
+            if !state.scenario_warnings.is_empty() {
+                ui.colored_label(
+                    egui::Color32::from_rgb(255, 170, 60),
+                    format!("{} scenario warning(s)", state.scenario_warnings.len()),
+                )
+                .on_hover_text(state.scenario_warnings.join("\n"));
             }
             ui.horizontal(|ui| {
                 let label = if status.paused { "Run" } else { "Pause" };
