@@ -92,7 +92,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if std::env::var("NEIGH").is_ok() && t >= t_end - 1e-9 {
             let torn: Vec<usize> = (0..s.solid.len())
                 .filter(|&k| s.solid_extra.flags[k] & SolidFlags::MEMBRANE != 0)
-                .filter(|&k| 4 * s.solid_extra.bonds[k] < 3 * s.solid_extra.bonds_initial[k])
+                .filter(|&k| {
+                    !perfuse::sim::cpu::forces::capsule_seals(s.solid_extra.bonds[k], s.solid_extra.bonds_initial[k])
+                })
                 .collect();
             let n_memb = (0..s.solid.len()).filter(|&k| s.solid_extra.flags[k] & SolidFlags::MEMBRANE != 0).count();
             eprintln!("membrane particles {n_memb}, not intact (< 3/4 bonds) {}", torn.len());

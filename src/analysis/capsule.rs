@@ -20,7 +20,7 @@
 
 use super::validate::{CaseResult, Invariants, Pace, ValidationError, advance_to, at_least, at_most, reported};
 use crate::scenario::{Scenario, SolidFlags};
-use crate::sim::cpu::forces::capsule_normal;
+use crate::sim::cpu::forces::{capsule_normal, capsule_seals};
 use crate::sim::{BackendKind, Simulation, State};
 use glam::Vec3;
 use std::path::Path;
@@ -147,10 +147,12 @@ pub fn liquid_beyond_capsule(s: &State, normal0: &[[f64; 3]], dx: f32) -> usize 
 /// Whether membrane particle `k` has lost more than half of its bonds, so that it is no longer part
 /// of the capsule's sheet ([`beyond_capsule`]'s hull skips it).
 pub fn detached_from_capsule(s: &State, k: usize) -> bool {
-    match (s.solid_extra.bonds.get(k), s.solid_extra.bonds_initial.get(k)) {
-        (Some(&now), Some(&initial)) => 2 * now < initial,
-        _ => false,
-    }
+    bond_counts(s, k).is_some_and(|(now, initial)| 2 * now < initial)
+}
+
+/// Solid particle `k`'s intact bonds now and at t = 0 (`None` where the state carries no bonds).
+fn bond_counts(s: &State, k: usize) -> Option<(u32, u32)> {
+    Some((*s.solid_extra.bonds.get(k)?, *s.solid_extra.bonds_initial.get(k)?))
 }
 
 /// Membrane particles whose capsule is torn by the seal's rule (`forces::capsule_seals`: fewer than
@@ -158,10 +160,7 @@ pub fn detached_from_capsule(s: &State, k: usize) -> bool {
 pub fn torn_capsule_particles(s: &State) -> usize {
     (0..s.solid.len())
         .filter(|&k| s.solid_extra.flags.get(k).is_some_and(|f| f & SolidFlags::MEMBRANE != 0))
-        .filter(|&k| match (s.solid_extra.bonds.get(k), s.solid_extra.bonds_initial.get(k)) {
-            (Some(&now), Some(&initial)) => !crate::sim::cpu::forces::capsule_seals(now, initial),
-            _ => false,
-        })
+        .filter(|&k| bond_counts(s, k).is_some_and(|(now, initial)| !capsule_seals(now, initial)))
         .count()
 }
 

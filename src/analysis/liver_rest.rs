@@ -15,6 +15,7 @@
 use super::capsule::liquid_beyond_capsule;
 use super::validate::{CaseResult, Invariants, Pace, ValidationError, advance_to, at_least, at_most, reported};
 use crate::scenario::Scenario;
+use crate::sim::state::PhaseState;
 use crate::sim::{BackendKind, Simulation};
 use glam::Vec3;
 use std::path::Path;
@@ -81,10 +82,7 @@ pub fn run(sc: &Scenario, backend: BackendKind) -> Result<RestOutcome, Validatio
         outside_max: relaxed.liquid_outside(),
         ..Default::default()
     };
-    log::info!(
-        "liver_rest: relaxed, t = 0: solid mean speed {:.2} mm/s",
-        relaxed.solid.vel.iter().map(|v| v.length()).sum::<f32>() / relaxed.solid.len().max(1) as f32 * 1e3
-    );
+    log::info!("liver_rest: relaxed, t = 0: solid mean speed {:.2} mm/s", mean_speed(&relaxed.solid) * 1e3);
     let mut pace = Pace::new(&sim);
     let mut s = relaxed.clone();
     for k in 1..=5 {
@@ -93,22 +91,21 @@ pub fn run(sc: &Scenario, backend: BackendKind) -> Result<RestOutcome, Validatio
         s = sim.read_state()?;
         inv.check(&sim, &s);
         o.outside_max = o.outside_max.max(s.liquid_outside());
-        let n = s.solid.len().max(1) as f32;
         log::info!(
             "liver_rest: t = {:.3} s: solid mean speed {:.2} mm/s, bulk {:.2?} mm/s; liquid mean speed {:.2} mm/s, \
              bulk {:.2?} mm/s",
             s.t,
-            s.solid.vel.iter().map(|v| v.length()).sum::<f32>() / n * 1e3,
-            s.solid.vel.iter().copied().sum::<Vec3>() / n * 1e3,
-            s.liquid.vel.iter().map(|v| v.length()).sum::<f32>() / s.liquid.len().max(1) as f32 * 1e3,
-            s.liquid.vel.iter().copied().sum::<Vec3>() / s.liquid.len().max(1) as f32 * 1e3
+            mean_speed(&s.solid) * 1e3,
+            bulk_velocity(&s.solid) * 1e3,
+            mean_speed(&s.liquid) * 1e3,
+            bulk_velocity(&s.liquid) * 1e3
         );
         pace.log("liver_rest", &sim);
     }
     let n = s.solid.len().max(1) as f32;
     o.broken_after = s.broken_bonds() - o.broken_relaxing.min(s.broken_bonds());
-    o.mean_speed_end = f64::from(s.solid.vel.iter().map(|v| v.length()).sum::<f32>() / n);
-    o.bulk_speed_end = f64::from((s.solid.vel.iter().copied().sum::<Vec3>() / n).length());
+    o.mean_speed_end = f64::from(mean_speed(&s.solid));
+    o.bulk_speed_end = f64::from(bulk_velocity(&s.solid).length());
     o.sag = f64::from(s.solid.pos.iter().zip(&s0.solid.pos).map(|(a, b)| b.y - a.y).sum::<f32>() / n);
     o.drift = f64::from((s.solid.pos.iter().zip(&relaxed.solid.pos).map(|(a, b)| *a - *b).sum::<Vec3>() / n).length());
     o.beyond_end = liquid_beyond_capsule(&s, &normal0, dx);
@@ -129,6 +126,16 @@ pub fn run(sc: &Scenario, backend: BackendKind) -> Result<RestOutcome, Validatio
         o.beyond_end
     );
     Ok(o)
+}
+
+/// Mean particle speed of a phase \[m/s\].
+fn mean_speed(set: &PhaseState) -> f32 {
+    set.vel.iter().map(|v| v.length()).sum::<f32>() / set.len().max(1) as f32
+}
+
+/// Mean velocity of a phase (its particles' unweighted mean) \[m/s\].
+fn bulk_velocity(set: &PhaseState) -> Vec3 {
+    set.vel.iter().copied().sum::<Vec3>() / set.len().max(1) as f32
 }
 
 /// Rows of `report.json`.

@@ -671,7 +671,7 @@ pub struct Membrane {
     pub stiffness: f64,
     /// The capsule's seal (default true; README: deviations from SPEC): liquid within a quarter of its
     /// spacing of an intact capsule particle's plane, or just beyond it, cannot move outward through
-    /// it (`forces::capsule_seal`). `false`: the thesis's capsule, which holds blood only by its mirror
+    /// it (`forces::capsule_seal_pair`). `false`: the thesis's capsule, which holds blood only by its mirror
     /// pressure, and seeps where that pressure is zero.
     #[serde(default = "yes")]
     pub seal: bool,
