@@ -34,6 +34,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         speed.iter().sum::<f32>() / n.max(1) as f32 * 1e3,
         s.broken_bonds()
     );
+    let mean_of = |want: bool| {
+        let v: Vec<f32> = (0..n).filter(|&k| memb(k) == want).map(|k| speed[k]).collect();
+        v.iter().sum::<f32>() / v.len().max(1) as f32 * 1e3
+    };
+    println!("  mean speed: capsule {:.2} mm/s, tissue {:.2} mm/s", mean_of(true), mean_of(false));
     for &k in order.iter().take(15) {
         println!(
             "  solid {k}: |v| {:.2} mm/s v {:+.2?} mm/s at {:+.4?} membrane {} flags {:#x} bonds {}/{}",
@@ -45,6 +50,41 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             s.solid_extra.bonds[k],
             s.solid_extra.bonds_initial[k]
         );
+    }
+    if std::env::var_os("SEAL").is_some() {
+        // SEAL=1: for the five fastest capsule particles, the capsule's normal cof(F)n̂₀ against its
+        // initial n̂₀, and the blood within Δx_s: depth along the normal (the seal's band is ±Δx_l/4) and
+        // the relative normal velocity (what the seal stops when outward)
+        let normal0: Vec<glam::Vec3> = perfuse::scenario::generate(&sc)
+            .solid_normal
+            .iter()
+            .map(|n| glam::Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32))
+            .collect();
+        let (dx_s, dx_l) = (sim.params().dx_solid, sim.params().dx_liquid);
+        for &k in order.iter().filter(|&&k| memb(k)).take(5) {
+            let n = perfuse::sim::cpu::forces::capsule_normal(s.solid_extra.def_grad[k], normal0[k]);
+            println!(
+                "  capsule {k}: n {:+.2?} (n0 {:+.2?}, angle {:.0}°), v·n {:+.2} mm/s, v tangential {:.2} mm/s",
+                n,
+                normal0[k],
+                n.dot(normal0[k]).clamp(-1.0, 1.0).acos().to_degrees(),
+                s.solid.vel[k].dot(n) * 1e3,
+                (s.solid.vel[k] - n * s.solid.vel[k].dot(n)).length() * 1e3
+            );
+            for (i, x) in s.liquid.pos.iter().enumerate() {
+                let d = *x - s.solid.pos[k];
+                if d.length() < dx_s {
+                    let sd = d.dot(n) / dx_l;
+                    let vrel = (s.liquid.vel[i] - s.solid.vel[k]).dot(n) * 1e3;
+                    println!(
+                        "    liquid {i}: r {:.2} Δx_s, depth {sd:+.2} Δx_l{}, (v_i − v_j)·n {vrel:+.2} mm/s, |v_i| {:.2} mm/s",
+                        d.length() / dx_s,
+                        if sd.abs() < 0.25 { " (in band)" } else { "" },
+                        s.liquid.vel[i].length() * 1e3
+                    );
+                }
+            }
+        }
     }
     let lspeed: Vec<f32> = s.liquid.vel.iter().map(|v| v.length()).collect();
     println!(

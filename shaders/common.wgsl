@@ -767,6 +767,12 @@ fn capsule_seals(j: u32) -> bool {
     return 4u * bond_count[j] >= 3u * bond_count0[j];
 }
 
+// Twin of forces.rs capsule_seal_share: the liquid's share m_j/(m_i + m_j) of the seal's stop of liquid
+// i (mass m_liquid) against membrane particle j (m_membrane), the membrane's m_i/(m_i + m_j).
+fn capsule_seal_share(m_liquid: f32, m_membrane: f32) -> f32 {
+    return m_membrane / (m_liquid + m_membrane);
+}
+
 // Twin of forces.rs capsule_seal_pair: (term, w) of intact membrane particle j (outward normal n) for
 // liquid i, x_ij = x_i − x_j, v_rel = v_i − v_j.
 fn capsule_seal_pair(n: vec3<f32>, xij: vec3<f32>, r: f32, v_rel: vec3<f32>) -> vec4<f32> {

@@ -362,7 +362,7 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
                     if (params.capsule_seal > 0.0 && capsule_seals(j)) {
                         let sp = capsule_seal_pair(n, xij, r, vi - vj.xyz);
                         seal_w += sp.w;
-                        seal_sum += sp.xyz;
+                        seal_sum += sp.xyz * capsule_seal_share(liquid_pos[i].w, solid_pos[j].w);
                     }
                     if (capsule_inner(n, xij)) {
                         // beneath the capsule: its liquid layers (forces.rs capsule_inner)
@@ -610,7 +610,7 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                         if (seals && seal_scale > 0.0) {
                             // the reaction of the capsule's seal on liquid j (forces.rs capsule_seal_pair)
                             let sp = capsule_seal_pair(normal_i, -xij, r, vj - vi);
-                            fm += sp.xyz * (mj * seal_scale);
+                            fm += sp.xyz * (mj * seal_scale * capsule_seal_share(mj, pi4.w));
                         }
                     }
                 }
