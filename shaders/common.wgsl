@@ -756,8 +756,8 @@ fn capsule_solid_layer(n: vec3<f32>, xij: vec3<f32>, k: u32) -> vec3<f32> {
     return xij - n * (f32(k) * params.capsule_dx_solid);
 }
 
-// Steps over which the capsule's seal walks liquid beyond the capsule's plane back to it (forces.rs
-// CAPSULE_SEAL_STEPS).
+// Steps over which the capsule's seal walks liquid beyond the capsule's plane back to it, by its advection
+// velocity alone (forces.rs CAPSULE_SEAL_STEPS).
 const CAPSULE_SEAL_STEPS: f32 = 32.0;
 // Steps over which the seal stops liquid moving out through the capsule (forces.rs CAPSULE_SEAL_STOP_STEPS).
 const CAPSULE_SEAL_STOP_STEPS: f32 = 4.0;
@@ -773,24 +773,32 @@ fn capsule_seal_share(m_liquid: f32, m_membrane: f32) -> f32 {
     return m_membrane / (m_liquid + m_membrane);
 }
 
-// Twin of forces.rs capsule_seal_pair: (term, w) of intact membrane particle j (outward normal n) for
-// liquid i, x_ij = x_i − x_j, v_rel = v_i − v_j.
-fn capsule_seal_pair(n: vec3<f32>, xij: vec3<f32>, r: f32, v_rel: vec3<f32>) -> vec4<f32> {
+// Twin of forces.rs SealPair: one intact membrane particle's part in the seal on one liquid particle.
+struct SealPair {
+    // w (v_n)⁺ n̂: the outward relative normal velocity it stops, weighted
+    stop: vec3<f32>,
+    // −w (sd)⁺ n̂ / (s Δt_max): the walk back to its plane, weighted (an advection velocity)
+    back: vec3<f32>,
+    // W_P(r; h_l), 0 beyond Δx_s
+    w: f32,
+}
+
+// Twin of forces.rs capsule_seal_pair: intact membrane particle j (outward normal n) for liquid i,
+// x_ij = x_i − x_j, v_rel = v_i − v_j.
+fn capsule_seal_pair(n: vec3<f32>, xij: vec3<f32>, r: f32, v_rel: vec3<f32>) -> SealPair {
+    var sp = SealPair(vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
     if (r >= params.capsule_dx_solid || all(n == vec3<f32>(0.0))) {
-        return vec4<f32>(0.0);
+        return sp;
     }
-    let w = w_poly6(params.k_liquid, r);
+    sp.w = w_poly6(params.k_liquid, r);
     let depth = 0.25 * params.capsule_dx_liquid;
     let sd = dot3(xij, n);
     if (sd <= -depth || sd >= depth) {
-        return vec4<f32>(0.0, 0.0, 0.0, w);
+        return sp;
     }
-    let v_target = -max(sd, 0.0) / (CAPSULE_SEAL_STEPS * params.dt_upper);
-    let excess = dot3(v_rel, n) - v_target;
-    if (excess <= 0.0) {
-        return vec4<f32>(0.0, 0.0, 0.0, w);
-    }
-    return vec4<f32>(n * (w * excess), w);
+    sp.back = n * (-sp.w * max(sd, 0.0) / (CAPSULE_SEAL_STEPS * params.dt_upper));
+    sp.stop = n * (sp.w * max(dot3(v_rel, n), 0.0));
+    return sp;
 }
 
 fn m3_load(m: Mat3Gpu) -> mat3x3<f32> {

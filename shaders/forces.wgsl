@@ -346,6 +346,7 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     // the capsule's seal (forces.rs capsule_seal_pair): Σw and Σ terms over the intact capsule in reach
     var seal_w = 0.0;
     var seal_sum = vec3<f32>(0.0);
+    var seal_back = vec3<f32>(0.0);
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
@@ -362,7 +363,8 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
                     if (params.capsule_seal > 0.0 && capsule_seals(j)) {
                         let sp = capsule_seal_pair(n, xij, r, vi - vj.xyz);
                         seal_w += sp.w;
-                        seal_sum += sp.xyz * capsule_seal_share(liquid_pos[i].w, solid_pos[j].w);
+                        seal_sum += sp.stop * capsule_seal_share(liquid_pos[i].w, solid_pos[j].w);
+                        seal_back += sp.back;
                     }
                     if (capsule_inner(n, xij)) {
                         // beneath the capsule: its liquid layers (forces.rs capsule_inner)
@@ -401,7 +403,12 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     liquid_acc[i] = vec4<f32>(a + g, scale);
     if (xsph) {
         let eps = params.xsph_l;
-        liquid_vel_adv[i] = vec4<f32>(select(vi + d_xsph * eps, vi, eps == 0.0), 0.0);
+        // and the seal's walk back to the capsule's plane, in ṽ alone
+        var back = vec3<f32>(0.0);
+        if (seal_w > 0.0) {
+            back = seal_back / seal_w;
+        }
+        liquid_vel_adv[i] = vec4<f32>(select(vi + d_xsph * eps, vi, eps == 0.0) + back, 0.0);
     }
 }
 
@@ -610,7 +617,7 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                         if (seals && seal_scale > 0.0) {
                             // the reaction of the capsule's seal on liquid j (forces.rs capsule_seal_pair)
                             let sp = capsule_seal_pair(normal_i, -xij, r, vj - vi);
-                            fm += sp.xyz * (mj * seal_scale * capsule_seal_share(mj, pi4.w));
+                            fm += sp.stop * (mj * seal_scale * capsule_seal_share(mj, pi4.w));
                         }
                     }
                 }

@@ -836,7 +836,9 @@ fn stiff_capsule_matches_cpu() {
 /// liquid and solid accelerations agree within 1e-4 of max |a| plus 1e-6 max |v| / Δt_max (the seal
 /// divides a velocity by Δt_max, which amplifies the velocities' rounding, as wall friction's stick
 /// does), and the seal matters: without it both sets' accelerations differ by far more, on the blood
-/// and, through its reaction, on the capsule, whose forces and the blood's sum to zero.
+/// and, through its reaction, on the capsule, whose forces and the blood's sum to zero. Evaluation 0's
+/// advection velocities ṽ, which carry the seal's walk back to the capsule's plane, agree within 1e-5
+/// of max |v|, and the walk matters.
 #[test]
 fn capsule_seal_matches_cpu() {
     gpu_test("capsule_seal_matches_cpu", |ctx| {
@@ -861,18 +863,33 @@ fn capsule_seal_matches_cpu() {
             *v = (*x - centre).normalize_or_zero() * 0.05;
         }
         cpu.build_grids();
-        let (al, as_) = evaluate_both(ctx, &mut cpu);
+        let mut gpu = gpu_from(ctx, &cpu);
+        gpu.run_stages(passes::EVALUATE).expect("GPU evaluation");
+        let al: Vec<Vec3> =
+            gpu.read_slot(Slot::LiquidAcc, cpu.st.liquid.x.len()).expect("liquid a").iter().map(xyz).collect();
+        let as_: Vec<Vec3> =
+            gpu.read_slot(Slot::SolidAcc, cpu.st.solid.x.len()).expect("solid a").iter().map(xyz).collect();
+        gpu.run_stages(&[Stage::Pass(passes::FORCES_LIQUID_XSPH)]).expect("GPU evaluation 0");
+        let vl: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidVelAdv, cpu.st.liquid.x.len()).expect("liquid ṽ");
+        cpu_evaluate(&mut cpu);
         let (l, s) = (&cpu.st.liquid, &cpu.st.solid);
         let (d_al, d_as) = (max_vec_diff(&al, &l.a), max_vec_diff(&as_, &s.a));
-        let (without_l, without_s) = {
+        let vl: Vec<Vec3> = vl.iter().map(xyz).collect();
+        let d_vx = max_vec_diff(&vl, &l.vx);
+        let (without_l, without_s, without_vx) = {
             let mut p0 = cpu.params.clone();
             p0.capsule_seal = 0.0;
             let nb = nbrs(&cpu);
             let ctx = force_ctx(&cpu, &p0, &cpu.contacts);
             let st = &cpu.st;
-            let lf = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, false);
-            (lf.a, forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &lf.seal_scale).0)
+            let lf = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, true);
+            let a_s = forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &lf.seal_scale).0;
+            (lf.a, a_s, lf.xsph.expect("ṽ"))
         };
+        // the walk back to the capsule's plane, in the blood's advection velocity ṽ alone
+        let walked = l.vx.iter().zip(&without_vx).filter(|(a, b)| (**a - **b).length() > 0.0).count();
+        let (part_vx, part_vx_gpu) = (max_vec_diff(&without_vx, &l.vx), max_vec_diff(&without_vx, &vl));
+        let tol_vx = 1e-5 * max_len(&l.v) + 1e-9;
         let (part_l, part_s) = (max_vec_diff(&without_l, &l.a), max_vec_diff(&without_s, &s.a));
         let sealed = l.a.iter().zip(&without_l).filter(|(a, b)| (**a - **b).length() > 0.0).count();
         // the seal's forces on the blood and their reactions on the capsule sum to zero
@@ -897,6 +914,11 @@ fn capsule_seal_matches_cpu() {
         assert!(net.length() <= 1e-4 * gross, "the seal's net force {net} (gross {gross})");
         assert!(d_al <= tol_l, "liquid accelerations differ by {d_al:e}");
         assert!(d_as <= tol_s, "solid accelerations differ by {d_as:e}");
+        eprintln!(
+            "capsule seal: {walked} walked back, ṽ {d_vx:.3e} (tolerance {tol_vx:.3e}, the walk {part_vx:.3e}, on the GPU {part_vx_gpu:.3e})"
+        );
+        assert!(walked > 0 && part_vx > 100.0 * tol_vx, "the scene must exercise the seal's walk back");
+        assert!(d_vx <= tol_vx, "liquid advection velocities differ by {d_vx:e}");
     });
 }
 
