@@ -480,8 +480,9 @@ pub struct SealPair {
 /// and the pair stops without overshoot. Without it (the liquid stopped in full, the membrane given
 /// the reaction) a capsule child of a quarter site's mass under liquid 3.3× heavier (the §4.2
 /// specimens) was thrown outward 0.8× the excess per step by each liquid neighbour: past the liquid,
-/// back by its bonds, thrown out again — the seal pumped the capsule to 0.3 m/s (README: deviations
-/// from SPEC). Twin of `capsule_seal_share` in common.wgsl.
+/// back by its bonds, thrown out again: in the 8³ projectile specimen's relaxation the fastest capsule
+/// particle fell from 330 to 187 mm/s with the share, and to 18 mm/s once the walk-back also left the
+/// stop (README: deviations from SPEC). Twin of `capsule_seal_share` in common.wgsl.
 #[inline]
 pub fn capsule_seal_share(m_liquid: f32, m_membrane: f32) -> f32 {
     m_membrane / (m_liquid + m_membrane)
