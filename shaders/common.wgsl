@@ -758,7 +758,7 @@ fn capsule_solid_layer(n: vec3<f32>, xij: vec3<f32>, k: u32) -> vec3<f32> {
 
 // Steps over which the capsule's seal walks liquid beyond the capsule's plane back to it, by its advection
 // velocity alone (forces.rs CAPSULE_SEAL_STEPS).
-const CAPSULE_SEAL_STEPS: f32 = 32.0;
+const CAPSULE_SEAL_STEPS: f32 = 128.0;
 // Steps over which the seal stops liquid moving out through the capsule (forces.rs CAPSULE_SEAL_STOP_STEPS).
 const CAPSULE_SEAL_STOP_STEPS: f32 = 4.0;
 
