@@ -12,7 +12,9 @@
 //! t = 0, and the thesis criterion breaks its near-2h bonds all over the cube (at 12³ without
 //! relaxation 32 % of the bonds broken by 0.15 s lay beyond R_p + 2h of the path). The standard run
 //! is the file (32³/30³, 1 s): a GPU run. Frames (before entry, just after exit, the end) are
-//! rendered where an adapter is.
+//! rendered where an adapter is. Besides its rows the run records (and logs) where and when bonds broke
+//! and which straddling bonds survived — the breakdown that showed the thesis criterion tearing the
+//! capsule's near-2h bonds off the path, hence the file's critical stretch (README Deviations).
 
 use super::frames::simulation_with_frames;
 use super::validate::{CaseResult, Invariants, Pace, ValidationError, advance_to, at_least, at_most};
