@@ -112,6 +112,18 @@ fn segment_off_axis(a: [f64; 3], b: [f64; 3]) -> f64 {
     (ay + t * dy).hypot(az + t * dz)
 }
 
+/// Whether the segment a–b crosses the axis: its nearest point to the axis lies strictly inside it (the
+/// ends on opposite sides), not at an end.
+fn crosses_axis(a: [f64; 3], b: [f64; 3]) -> bool {
+    segment_off_axis(a, b) < off_axis(a).min(off_axis(b)) - 1e-12
+}
+
+/// Whether a point of the cube lies nearer the entry or exit face (x = ±L_c/2) than the four faces
+/// along the path.
+fn nearer_end_face(p: [f64; 3]) -> bool {
+    p[0].abs() > p[1].abs().max((p[2] - 0.5 * L_C).abs())
+}
+
 fn inside_cube(p: [f64; 3]) -> bool {
     p[0].abs() <= 0.5 * L_C && p[1].abs() <= 0.5 * L_C && (0.0..=L_C).contains(&p[2])
 }
@@ -185,7 +197,7 @@ pub fn run(
             let (a, b) = (world(s0.solid.pos[i]), world(s0.solid.pos[j as usize]));
             let d = segment_off_axis(a, b);
             if inside_cube(a) && inside_cube(b) && d < 0.25 * r_p {
-                straddling.push((i, j as usize, d < off_axis(a).min(off_axis(b)) - 1e-12));
+                straddling.push((i, j as usize, crosses_axis(a, b)));
             }
         }
     }
@@ -197,6 +209,7 @@ pub fn run(
             .map(|i| f64::from(s.liquid.mass[i]) / f64::from(p.rho0_l))
             .sum::<f64>()
     };
+    let capsule = |s: &State, k: usize| s.solid_extra.flags[k] & SolidFlags::MEMBRANE != 0;
     let mut inv = Invariants::with_emitters().open_domain();
     inv.check(&sim, &s0);
     let mut prev = s0.clone();
@@ -235,13 +248,10 @@ pub fn run(
                             (unrelaxed.solid.pos[i] - unrelaxed.solid.pos[j as usize]).length() / (2.0 * p.k_solid.h);
                         let bin = [0.7, 0.9, 0.97].iter().filter(|&&b| born >= b).count();
                         if d > reach {
-                            let fl = &s.solid_extra.flags;
-                            let cap = |k: usize| fl[k] & SolidFlags::MEMBRANE != 0;
-                            out.off_path_capsule[window] += usize::from(cap(i) || cap(j as usize));
-                            out.off_path_capsule_both[window] += usize::from(cap(i) && cap(j as usize));
-                            out.off_path_end_faces[window] += usize::from(
-                                0.5 * L_C - m[0].abs() < 0.5 * L_C - m[1].abs().max((m[2] - 0.5 * L_C).abs()),
-                            );
+                            let (ci, cj) = (capsule(&s, i), capsule(&s, j as usize));
+                            out.off_path_capsule[window] += usize::from(ci || cj);
+                            out.off_path_capsule_both[window] += usize::from(ci && cj);
+                            out.off_path_end_faces[window] += usize::from(nearer_end_face(m));
                             out.born_length_off[bin] += 1;
                         } else {
                             out.born_length_near[bin] += 1;
@@ -256,8 +266,8 @@ pub fn run(
                 straddling.iter().filter(|(i, j, _)| s.solid_extra.bond_lists[*i].contains(&(*j as u32))).collect();
             out.straddling_cut = straddling.len() - intact.len();
             out.crossing_cut = out.crossing - intact.iter().filter(|b| b.2).count();
-            let cap = |k: usize| s.solid_extra.flags[k] & SolidFlags::MEMBRANE != 0;
-            out.straddling_intact_capsule = intact.iter().filter(|(i, j, _)| cap(*i) && cap(*j)).count();
+            out.straddling_intact_capsule =
+                intact.iter().filter(|(i, j, _)| capsule(&s, *i) && capsule(&s, *j)).count();
             out.straddling_intact_outside = intact
                 .iter()
                 .filter(|(i, j, _)| world((s.solid.pos[*i] + s.solid.pos[*j]) * 0.5)[0].abs() > 0.5 * L_C)
@@ -464,8 +474,7 @@ mod tests {
                 if segment_off_axis(a, b) >= 0.25 * r_p {
                     continue;
                 }
-                // opposite sides: the segment's nearest point to the axis lies strictly inside it
-                let crossing = segment_off_axis(a, b) < off_axis(a).min(off_axis(b)) - 1e-12;
+                let crossing = crosses_axis(a, b);
                 let cut = dist(pushed(a), pushed(b)) > two_h;
                 n.0 += 1;
                 n.1 += usize::from(cut);
