@@ -2,8 +2,13 @@
 //! t = 0 — kind (membrane or not, fixed), position, speed, bonds — and the bonds broken while relaxing.
 //! Found the projectile specimen's relaxed max |v| (README: the projectile case).
 //!
+//! `TRACE=Δt` also prints, every Δt seconds of the relaxation, the solid's largest and mean speed,
+//! where the fastest particle is and the blood's mean speed: whether the motion decays at the damping's
+//! rate or something keeps driving it (it showed the capsule seal's walk-back doing so; README,
+//! Deviations).
+//!
 //! ```text
-//! cargo run --release --example relax_probe -- SCENARIO [k=v]...
+//! [TRACE=0.05] cargo run --release --example relax_probe -- SCENARIO [k=v]...
 //! ```
 
 use perfuse::scenario::{Scenario, SolidFlags};
@@ -19,7 +24,38 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let sc = Scenario::load_with_overrides(Path::new(&args[1]), &sets)?;
     let mut sim = Simulation::new(&sc, BackendKind::Cpu)?;
     let t0 = std::time::Instant::now();
-    sim.relax(|_| {})?;
+    match (std::env::var("TRACE").ok().and_then(|t| t.parse::<f64>().ok()), sc.relaxation.clone()) {
+        // TRACE=Δt: the relaxation in steps of Δt [s], with the solid's largest and mean speed, the
+        // fastest particle's kind and place, and the liquid's mean speed after each
+        (Some(every), Some(r)) if every > 0.0 && r.duration > 0.0 => {
+            for c in r.start_commands() {
+                sim.apply(&c)?;
+            }
+            let mut t = -r.duration;
+            while t < -1e-12 {
+                t = (t + every).min(0.0);
+                sim.advance_until(t, u64::MAX, |_| {})?;
+                let s = sim.read_state()?;
+                let speed: Vec<f32> = s.solid.vel.iter().map(|v| v.length()).collect();
+                let k = (0..speed.len()).max_by(|&a, &b| speed[a].total_cmp(&speed[b])).unwrap_or(0);
+                let mean = speed.iter().sum::<f32>() / speed.len().max(1) as f32;
+                let lmean = s.liquid.vel.iter().map(|v| v.length()).sum::<f32>() / s.liquid.len().max(1) as f32;
+                println!(
+                    "t {t:+.3} s: solid max {:.2} mm/s (#{k}, membrane {}, at {:+.4?}), mean {:.3} mm/s; liquid mean {:.2} mm/s, broken {}",
+                    speed.get(k).copied().unwrap_or(0.0) * 1e3,
+                    s.solid_extra.flags.get(k).is_some_and(|f| f & SolidFlags::MEMBRANE != 0),
+                    s.solid.pos.get(k).copied().unwrap_or_default(),
+                    mean * 1e3,
+                    lmean * 1e3,
+                    s.broken_bonds()
+                );
+            }
+            for c in r.end_commands() {
+                sim.apply(&c)?;
+            }
+        }
+        _ => sim.relax(|_| {})?,
+    }
     let s = sim.read_state()?;
     let n = s.solid.len();
     let speed: Vec<f32> = s.solid.vel.iter().map(|v| v.length()).collect();
