@@ -31,6 +31,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for c in r.start_commands() {
                 sim.apply(&c)?;
             }
+            // positions in the scenario's coordinates (the state's are relative to `Params::origin`)
+            let o = sim.params().origin;
+            let origin = glam::Vec3::new(o[0] as f32, o[1] as f32, o[2] as f32);
             let mut t = -r.duration;
             while t < -1e-12 {
                 t = (t + every).min(0.0);
@@ -44,7 +47,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     "t {t:+.3} s: solid max {:.2} mm/s (#{k}, membrane {}, at {:+.4?}), mean {:.3} mm/s; liquid mean {:.2} mm/s, broken {}",
                     speed.get(k).copied().unwrap_or(0.0) * 1e3,
                     s.solid_extra.flags.get(k).is_some_and(|f| f & SolidFlags::MEMBRANE != 0),
-                    s.solid.pos.get(k).copied().unwrap_or_default(),
+                    s.solid.pos.get(k).copied().unwrap_or_default() + origin,
                     mean * 1e3,
                     lmean * 1e3,
                     s.broken_bonds()
