@@ -195,8 +195,7 @@ pub fn run(
     for (i, l) in s0.solid_extra.bond_lists.iter().enumerate() {
         for &j in l.iter().filter(|&&j| (j as usize) > i) {
             let (a, b) = (world(s0.solid.pos[i]), world(s0.solid.pos[j as usize]));
-            let d = segment_off_axis(a, b);
-            if inside_cube(a) && inside_cube(b) && d < 0.25 * r_p {
+            if inside_cube(a) && inside_cube(b) && segment_off_axis(a, b) < 0.25 * r_p {
                 straddling.push((i, j as usize, crosses_axis(a, b)));
             }
         }
