@@ -158,10 +158,13 @@ fn bond_counts(s: &State, k: usize) -> Option<(u32, u32)> {
 /// Membrane particles whose capsule is torn by the seal's rule (`forces::capsule_seals`: fewer than
 /// three quarters of their bonds intact), so that there it no longer seals.
 pub fn torn_capsule_particles(s: &State) -> usize {
-    (0..s.solid.len())
-        .filter(|&k| s.solid_extra.flags.get(k).is_some_and(|f| f & SolidFlags::MEMBRANE != 0))
-        .filter(|&k| bond_counts(s, k).is_some_and(|(now, initial)| !capsule_seals(now, initial)))
-        .count()
+    (0..s.solid.len()).filter(|&k| torn(s, k)).count()
+}
+
+/// Whether solid particle `k` is a membrane particle torn by the seal's rule ([`torn_capsule_particles`]).
+fn torn(s: &State, k: usize) -> bool {
+    s.solid_extra.flags.get(k).is_some_and(|f| f & SolidFlags::MEMBRANE != 0)
+        && bond_counts(s, k).is_some_and(|(now, initial)| !capsule_seals(now, initial))
 }
 
 /// How many of the liquid particles `beyond` ([`beyond_capsule`]) lie within 1.5Δx of a torn membrane
@@ -171,14 +174,10 @@ pub fn torn_capsule_particles(s: &State) -> usize {
 /// README, the seal's deviations) and a wound's lie in different places, and telling them apart took
 /// a scratch build before this row.
 pub fn beyond_at_a_tear(s: &State, beyond: &[usize], dx: f32) -> usize {
-    let torn: Vec<Vec3> = (0..s.solid.len())
-        .filter(|&k| s.solid_extra.flags.get(k).is_some_and(|f| f & SolidFlags::MEMBRANE != 0))
-        .filter(|&k| bond_counts(s, k).is_some_and(|(now, initial)| !capsule_seals(now, initial)))
-        .map(|k| s.solid.pos[k])
-        .collect();
+    let tears: Vec<Vec3> = (0..s.solid.len()).filter(|&k| torn(s, k)).map(|k| s.solid.pos[k]).collect();
     beyond
         .iter()
-        .filter(|&&i| s.liquid.pos.get(i).is_some_and(|&x| torn.iter().any(|t| t.distance(x) < 1.5 * dx)))
+        .filter(|&&i| s.liquid.pos.get(i).is_some_and(|&x| tears.iter().any(|t| t.distance(x) < 1.5 * dx)))
         .count()
 }
 
