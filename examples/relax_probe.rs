@@ -3,9 +3,10 @@
 //! Found the projectile specimen's relaxed max |v| (README: the projectile case).
 //!
 //! `TRACE=Δt` also prints, every Δt seconds of the relaxation, the solid's largest and mean speed,
-//! where the fastest particle is and the blood's mean speed: whether the motion decays at the damping's
-//! rate or something keeps driving it (it showed the capsule seal's walk-back doing so; README,
-//! Deviations).
+//! where the fastest particle is, the blood's mean speed and the blood beyond the capsule (counted as
+//! the capsule case does, `analysis::capsule::liquid_beyond_capsule`): whether the motion decays at
+//! the damping's rate or something keeps driving it (it showed the capsule seal's walk-back doing so;
+//! README, Deviations).
 //!
 //! ```text
 //! [TRACE=0.05] cargo run --release --example relax_probe -- SCENARIO [k=v]...
@@ -34,6 +35,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             // positions in the scenario's coordinates (the state's are relative to `Params::origin`)
             let o = sim.params().origin;
             let origin = glam::Vec3::new(o[0] as f32, o[1] as f32, o[2] as f32);
+            // blood beyond the capsule's local hull, as the capsule case counts it
+            let normal0 = perfuse::scenario::generate(&sc).solid_normal;
+            let dx_s = sim.params().dx_solid;
             let mut t = -r.duration;
             while t < -1e-12 {
                 t = (t + every).min(0.0);
@@ -44,13 +48,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let mean = speed.iter().sum::<f32>() / speed.len().max(1) as f32;
                 let lmean = s.liquid.vel.iter().map(|v| v.length()).sum::<f32>() / s.liquid.len().max(1) as f32;
                 println!(
-                    "t {t:+.3} s: solid max {:.2} mm/s (#{k}, membrane {}, at {:+.4?}), mean {:.3} mm/s; liquid mean {:.2} mm/s, broken {}",
+                    "t {t:+.3} s: solid max {:.2} mm/s (#{k}, membrane {}, at {:+.4?}), mean {:.3} mm/s; liquid mean {:.2} mm/s, broken {}, beyond the capsule {}",
                     speed.get(k).copied().unwrap_or(0.0) * 1e3,
                     s.solid_extra.flags.get(k).is_some_and(|f| f & SolidFlags::MEMBRANE != 0),
                     s.solid.pos.get(k).copied().unwrap_or_default() + origin,
                     mean * 1e3,
                     lmean * 1e3,
-                    s.broken_bonds()
+                    s.broken_bonds(),
+                    perfuse::analysis::capsule::liquid_beyond_capsule(&s, &normal0, dx_s)
                 );
             }
             for c in r.end_commands() {
