@@ -773,6 +773,12 @@ fn capsule_seal_share(m_liquid: f32, m_membrane: f32) -> f32 {
     return m_membrane / (m_liquid + m_membrane);
 }
 
+// Twin of forces.rs capsule_seal_walks: the seal walks liquid at pressure pr back to the capsule's plane
+// only where the mirror pressure does not hold it (p ≤ 0).
+fn capsule_seal_walks(pr: f32) -> bool {
+    return pr <= 0.0;
+}
+
 // Twin of forces.rs SealPair: one intact membrane particle's part in the seal on one liquid particle.
 struct SealPair {
     // w (v_n)⁺ n̂: the outward relative normal velocity it stops, weighted

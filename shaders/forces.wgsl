@@ -403,9 +403,10 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     liquid_acc[i] = vec4<f32>(a + g, scale);
     if (xsph) {
         let eps = params.xsph_l;
-        // and the seal's walk back to the capsule's plane, in ṽ alone
+        // and the seal's walk back to the capsule's plane, in ṽ alone, where the mirror pressure does not
+        // hold the blood (capsule_seal_walks)
         var back = vec3<f32>(0.0);
-        if (seal_w > 0.0) {
+        if (seal_w > 0.0 && capsule_seal_walks(pr)) {
             back = seal_back / seal_w;
         }
         liquid_vel_adv[i] = vec4<f32>(select(vi + d_xsph * eps, vi, eps == 0.0) + back, 0.0);

@@ -413,13 +413,28 @@ pub fn capsule_solid_layers(p: &Params, n: Vec3, xij: Vec3, radius: f32, mut f: 
 /// walk does not drag the light capsule outward through the pressure it leaves behind: the 8³
 /// projectile specimen relaxed with no source inside (`relax_probe … emitters=[]`) keeps its capsule
 /// at up to 41.6 mm/s at 32 steps, 4.1 at 128, 2.3 at 256; the capsule case passes at all three and the
-/// liver at rest moves at 1.95, 1.90 and 2.00 mm/s (README, Deviations).
+/// liver at rest moves at 1.95, 1.90 and 2.00 mm/s (README, Deviations; measured while the seal still
+/// walked blood at any pressure, before [`capsule_seal_walks`]).
 pub const CAPSULE_SEAL_STEPS: f32 = 128.0;
 
 /// Steps (of Δt_max) over which the capsule's seal stops liquid moving out through the capsule: a few,
 /// so that blood draining onto the capsule at ≈ 1 cm/s does not strike it in a single step (which
 /// shook the default liver's capsule), and few enough that it moves microns into the band meanwhile.
 pub const CAPSULE_SEAL_STOP_STEPS: f32 = 4.0;
+
+/// Whether the seal walks liquid at pressure `pr` back to the capsule's plane ([`capsule_seal_pair`]'s
+/// `back`): only where the capsule's mirror pressure does not hold it, p ≤ 0 (SPEC §4.1's bracket on the
+/// liquid is 2 max(p, 0)/ρ², nothing at p = 0 — the unsaturated blood that crossed the capsule at the
+/// Darcy speed). Blood under pressure is pushed back by the mirror already; walking it inward as well
+/// moved it against its own pressure, a correction of where it goes that does work on the blood without
+/// a force, returned as motion by the next steps: the seal's walk-back kept the relaxed projectile
+/// specimen moving (8³: fastest solid 6.26 mm/s at t = 0 with every particle walked, 1.82 with p ≤ 0
+/// alone; the capsule case holds its indented blood either way; README, Deviations). Twin of
+/// `capsule_seal_walks` in common.wgsl.
+#[inline]
+pub fn capsule_seal_walks(pr: f32) -> bool {
+    pr <= 0.0
+}
 
 /// Whether membrane particle j still seals: three quarters of its bonds intact (SPEC §4.6). A capsule
 /// torn by a blade or a projectile stops sealing there, and blood leaves through the wound. Twin of
@@ -438,16 +453,16 @@ pub fn capsule_seals(bond_count: u32, bond_count0: u32) -> bool {
 /// −δ < (x_i − x_j)·n̂ < δ, δ = Δx_l/4 (the liquid rests Δx_l/2 beneath the capsule:
 /// `keep_liquid_beneath_capsule`), the outward normal velocity relative to j is removed within
 /// [`CAPSULE_SEAL_STOP_STEPS`] steps, an inelastic stop shared between the two ([`capsule_seal_share`]);
-/// liquid beyond the plane (blood generated there, or a step's drift) is in addition walked back to it
-/// in [`CAPSULE_SEAL_STEPS`] steps by its advection velocity ṽ (2.65), like XSPH a correction of where
-/// it goes and not of its momentum. (As a target velocity of the stop — session 45 — the walk-back
+/// liquid beyond the plane (blood generated there, or a step's drift) that the mirror pressure does not
+/// hold ([`capsule_seal_walks`]: p ≤ 0) is in addition walked back to it in [`CAPSULE_SEAL_STEPS`] steps
+/// by its advection velocity ṽ (2.65), like XSPH a correction of where it goes and not of its momentum. (As a target velocity of the stop — session 45 — the walk-back
 /// parted the pair at up to δ/(32Δt_max), ≈ 0.1 m/s, and threw the light capsule particles outward:
 /// 154 mm/s in the liver's relaxation at 7 mm, 15 mm/s with no seal.) Liquid in the band is never
 /// pushed inward: a `PerfusedBlock`'s outer liquid layer, generated 0.06Δx_s beneath the capsule, stays
 /// where it is.
 ///
 /// The liquid's acceleration is −Σ σ_ij `stop` / (Σ w · s Δt_max), σ_ij its share of the pair's stop,
-/// s = [`CAPSULE_SEAL_STOP_STEPS`], Δt_max = `Params::dt_upper`, and its ṽ gains Σ `back` / Σ w, the
+/// s = [`CAPSULE_SEAL_STOP_STEPS`], Δt_max = `Params::dt_upper`, and its ṽ gains Σ `back` / Σ w (at p ≤ 0), the
 /// sums over the intact membrane particles within reach; j receives the stop's reaction. `xij` = x_i −
 /// x_j, `v_rel` = v_i − v_j, `n` j's outward normal (`capsule_normal`). Twin of `capsule_seal_pair` in
 /// common.wgsl.
@@ -643,8 +658,9 @@ pub fn forces_liquid(
             // the capsule's seal (`capsule_seal_pair`): 1/(Σw s Δt_max), kept for the membrane's reaction
             let scale = if seal_w > 0.0 { 1.0 / (seal_w * (CAPSULE_SEAL_STOP_STEPS * p.dt_upper())) } else { 0.0 };
             a -= seal_sum * scale;
-            // and its walk back to the capsule's plane, in ṽ alone
-            let back = if seal_w > 0.0 { seal_back / seal_w } else { Vec3::ZERO };
+            // and its walk back to the capsule's plane, in ṽ alone, where the mirror pressure does not
+            // hold the blood (`capsule_seal_walks`)
+            let back = if seal_w > 0.0 && capsule_seal_walks(pr) { seal_back / seal_w } else { Vec3::ZERO };
             (a + g, (xsph_velocity(vi, d_xsph, p.xsph_l) + back, scale))
         })
         .unzip();
