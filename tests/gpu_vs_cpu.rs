@@ -921,8 +921,8 @@ fn capsule_seal_matches_cpu() {
         assert!(d_vx <= tol_vx, "liquid advection velocities differ by {d_vx:e}");
         // the walk moves only blood that the mirror pressure does not hold (`capsule_seal_walks`, p ≤ 0):
         // the same blood under 100 Pa is left where it goes (ṽ as without the seal, bit for bit)
-        let walked_p = l.vx.iter().zip(&without_vx).zip(&l.p).filter(|((a, b), _)| **a != **b);
-        assert!(walked_p.clone().all(|(_, p)| *p <= 0.0), "walked blood under pressure");
+        let mut walked_p = l.vx.iter().zip(&without_vx).zip(&l.p).filter(|((a, b), _)| **a != **b);
+        assert!(walked_p.all(|(_, p)| *p <= 0.0), "walked blood under pressure");
         let mut pressed = cpu.st.liquid.clone();
         pressed.p.iter_mut().for_each(|p| *p = 100.0);
         let nb = nbrs(&cpu);
