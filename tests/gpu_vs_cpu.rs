@@ -876,10 +876,10 @@ fn capsule_seal_matches_cpu() {
         let (d_al, d_as) = (max_vec_diff(&al, &l.a), max_vec_diff(&as_, &s.a));
         let vl: Vec<Vec3> = vl.iter().map(xyz).collect();
         let d_vx = max_vec_diff(&vl, &l.vx);
+        let nb = nbrs(&cpu);
         let (without_l, without_s, without_vx) = {
             let mut p0 = cpu.params.clone();
             p0.capsule_seal = 0.0;
-            let nb = nbrs(&cpu);
             let ctx = force_ctx(&cpu, &p0, &cpu.contacts);
             let st = &cpu.st;
             let lf = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, true);
@@ -925,7 +925,6 @@ fn capsule_seal_matches_cpu() {
         assert!(walked_p.all(|(_, p)| *p <= 0.0), "walked blood under pressure");
         let mut pressed = cpu.st.liquid.clone();
         pressed.p.iter_mut().for_each(|p| *p = 100.0);
-        let nb = nbrs(&cpu);
         let ctx = force_ctx(&cpu, &cpu.params, &cpu.contacts);
         let st = &cpu.st;
         let vx_pressed = forces::forces_liquid(&ctx, &pressed, &st.solid, &st.boundary, &nb, true).xsph.expect("ṽ");

@@ -458,15 +458,14 @@ pub fn capsule_seals(bond_count: u32, bond_count0: u32) -> bool {
 /// by its advection velocity ṽ (2.65), like XSPH a correction of where it goes and not of its momentum.
 /// (As a target velocity of the stop — session 45 — the walk-back parted the pair at up to
 /// δ/(32Δt_max), ≈ 0.1 m/s, and threw the light capsule particles outward: 154 mm/s in the liver's
-/// relaxation at 7 mm, 15 mm/s with no seal.) Liquid in the band is never
-/// pushed inward: a `PerfusedBlock`'s outer liquid layer, generated 0.06Δx_s beneath the capsule, stays
-/// where it is.
+/// relaxation at 7 mm, 15 mm/s with no seal.) Liquid in the band is never pushed inward: a
+/// `PerfusedBlock`'s outer liquid layer, generated 0.06Δx_s beneath the capsule, stays where it is.
 ///
 /// The liquid's acceleration is −Σ σ_ij `stop` / (Σ w · s Δt_max), σ_ij its share of the pair's stop,
 /// s = [`CAPSULE_SEAL_STOP_STEPS`], Δt_max = `Params::dt_upper`, and its ṽ gains Σ `back` / Σ w (at
-/// p ≤ 0), the sums over the intact membrane particles within reach; j receives the stop's reaction. `xij` = x_i −
-/// x_j, `v_rel` = v_i − v_j, `n` j's outward normal (`capsule_normal`). Twin of `capsule_seal_pair` in
-/// common.wgsl.
+/// p ≤ 0), the sums over the intact membrane particles within reach; j receives the stop's reaction.
+/// `xij` = x_i − x_j, `v_rel` = v_i − v_j, `n` j's outward normal (`capsule_normal`). Twin of
+/// `capsule_seal_pair` in common.wgsl.
 #[inline]
 pub fn capsule_seal_pair(p: &Params, n: Vec3, xij: Vec3, r: f32, v_rel: Vec3) -> SealPair {
     let none = SealPair { w: 0.0, stop: Vec3::ZERO, back: Vec3::ZERO };
