@@ -6,10 +6,13 @@
 //! where the fastest particle is, the blood's mean speed and the blood beyond the capsule (counted as
 //! the capsule case does, `analysis::capsule::liquid_beyond_capsule`): whether the motion decays at
 //! the damping's rate or something keeps driving it (it showed the capsule seal's walk-back doing so;
-//! README, Deviations).
+//! README, Deviations); and the blood split by pressure, p ≤ 0 (the blood the seal walks back) or not,
+//! with the fastest particle's place, pressure and fractions. `FASTLIQ=1` lists the eight fastest
+//! particles at p ≤ 0 with their velocities (it found them pushed outward along the specimen's bottom
+//! edges while their positions stay put).
 //!
 //! ```text
-//! [TRACE=0.05] cargo run --release --example relax_probe -- SCENARIO [k=v]...
+//! [TRACE=0.05 [FASTLIQ=1]] cargo run --release --example relax_probe -- SCENARIO [k=v]...
 //! ```
 
 use perfuse::scenario::{Scenario, SolidFlags};
@@ -56,6 +59,44 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     lmean * 1e3,
                     s.broken_bonds(),
                     perfuse::analysis::capsule::liquid_beyond_capsule(&s, &normal0, dx_s)
+                );
+                // the blood by its pressure: unsaturated (p ≤ 0, what the seal's walk-back moves) or not
+                let lspeed: Vec<f32> = s.liquid.vel.iter().map(|v| v.length()).collect();
+                let (mut n0, mut s0, mut n1, mut s1) = (0usize, 0.0f32, 0usize, 0.0f32);
+                for (v, p) in lspeed.iter().zip(&s.liquid.p) {
+                    if *p <= 0.0 {
+                        n0 += 1;
+                        s0 += v;
+                    } else {
+                        n1 += 1;
+                        s1 += v;
+                    }
+                }
+                if std::env::var_os("FASTLIQ").is_some() {
+                    let mut order: Vec<usize> = (0..lspeed.len()).filter(|&k| s.liquid.p[k] <= 0.0).collect();
+                    order.sort_by(|&a, &b| lspeed[b].total_cmp(&lspeed[a]));
+                    for &k in order.iter().take(8) {
+                        println!(
+                            "      p<=0 liquid {}: |v| {:.1} mm/s v {:+.1?} mm/s at {:+.4?} n_s {:.3} n_l {:.3}",
+                            s.liquid.id[k],
+                            lspeed[k] * 1e3,
+                            s.liquid.vel[k] * 1e3,
+                            s.liquid.pos[k] + origin,
+                            s.liquid.n_s[k],
+                            s.liquid.n_l[k]
+                        );
+                    }
+                }
+                let kl = (0..lspeed.len()).max_by(|&a, &b| lspeed[a].total_cmp(&lspeed[b])).unwrap_or(0);
+                println!(
+                    "    liquid at p <= 0: {n0}, mean {:.2} mm/s; at p > 0: {n1}, mean {:.2} mm/s; fastest {:.1} mm/s at {:+.4?}, p {:.1} Pa, n_s {:.3}, n_l {:.3}",
+                    s0 / n0.max(1) as f32 * 1e3,
+                    s1 / n1.max(1) as f32 * 1e3,
+                    lspeed.get(kl).copied().unwrap_or(0.0) * 1e3,
+                    s.liquid.pos.get(kl).copied().unwrap_or_default() + origin,
+                    s.liquid.p.get(kl).copied().unwrap_or(0.0),
+                    s.liquid.n_s.get(kl).copied().unwrap_or(0.0),
+                    s.liquid.n_l.get(kl).copied().unwrap_or(0.0),
                 );
             }
             for c in r.end_commands() {
