@@ -287,6 +287,10 @@ enum Cmd {
         /// lists the edits under `overrides`.
         #[arg(long = "set", value_name = "FIELD=VALUE")]
         set: Vec<String>,
+        /// Relax each case's scenario even when this build has kept its relaxed state (the viewer's
+        /// cache, shared; the new state replaces the kept one; PERFUSE_CACHE_DIR= keeps none).
+        #[arg(long)]
+        fresh_relaxation: bool,
     },
 }
 
@@ -836,9 +840,19 @@ fn real_main() -> Result<()> {
             }
             Ok(())
         }
-        Cmd::Validate { case, quick, out, backend, set } => {
-            let report =
-                perfuse::analysis::validate::run_validation(case.as_deref(), quick, &out, backend.into(), true, &set)?;
+        Cmd::Validate { case, quick, out, backend, set, fresh_relaxation } => {
+            // the relaxed states the viewer, `render` or an earlier validation kept (bit for bit the same)
+            let cache = perfuse::replay::relaxed_cache::RelaxedCache::user_default();
+            let relax = perfuse::analysis::relaxation::RelaxWith { cache: cache.as_ref(), fresh: fresh_relaxation };
+            let report = perfuse::analysis::validate::run_validation(
+                case.as_deref(),
+                quick,
+                &out,
+                backend.into(),
+                true,
+                &set,
+                relax,
+            )?;
             for c in &report.cases {
                 println!(
                     "{:<28} {:<22} {:>10.4} (tol {:>7.4})  {}  {:.1} s",

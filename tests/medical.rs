@@ -270,7 +270,7 @@ fn syringe_draws_blood_out_of_the_tissue() {
         &["relaxation=null".into(), "gravity=(0.0, 0.0, 0.0)".into()],
     )
     .expect("syringe scenario");
-    let o = run(&sc, &Geometry::new(12, 11), BackendKind::Cpu, None, (0.01, 0.01)).expect("run");
+    let o = run(&sc, &Geometry::new(12, 11), BackendKind::Cpu, None, (0.01, 0.01), Default::default()).expect("run");
     eprintln!("{}: drawn (t [s], m³) {:?}", o.resolution, o.drawn);
     eprintln!(
         "largest fall {:.3e} m³; {} solid within 3Δx_s of the tip moved {:.3e} m toward it; leaked at most {:.4}",

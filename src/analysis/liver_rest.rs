@@ -13,6 +13,7 @@
 //! particle-steps, a fifth of its time) it moved here, where the big runs are.
 
 use super::capsule::liquid_beyond_capsule;
+use super::relaxation::RelaxWith;
 use super::validate::{CaseResult, Invariants, Pace, ValidationError, advance_to, at_least, at_most, reported};
 use crate::scenario::Scenario;
 use crate::sim::state::PhaseState;
@@ -65,13 +66,13 @@ pub struct RestOutcome {
 }
 
 /// Relaxes `sc` as it says and runs it [`REST_DURATION`] undamped, sampling every 0.01 s.
-pub fn run(sc: &Scenario, backend: BackendKind) -> Result<RestOutcome, ValidationError> {
+pub fn run(sc: &Scenario, backend: BackendKind, relax: RelaxWith<'_>) -> Result<RestOutcome, ValidationError> {
     let generated = crate::scenario::generate(sc);
     let normal0 = generated.solid_normal.clone();
     let mut sim = Simulation::from_generated(sc, generated, backend)?;
     let dx = sim.params().dx_solid;
     let s0 = sim.read_state()?;
-    sim.relax(|_| {})?;
+    super::relaxation::relax_cached(relax, sc, &mut sim)?;
     let relaxed = sim.read_state()?;
     let mut inv = Invariants::default();
     inv.check(&sim, &relaxed);
@@ -161,10 +162,11 @@ pub fn validate(
     _out: &Path,
     _progress: bool,
     overrides: &[String],
+    relax: RelaxWith<'_>,
 ) -> Result<Vec<CaseResult>, ValidationError> {
     let started = Instant::now();
     let sc = scenario(quick, overrides)?;
-    let o = run(&sc, backend)?;
+    let o = run(&sc, backend, relax)?;
     let resolution =
         format!("dx {} mm: {} solid (capsule included), {} liquid", if quick { 7 } else { 5 }, o.solid, o.liquid);
     Ok(rows(&o, &resolution, started.elapsed().as_secs_f64()))

@@ -17,6 +17,7 @@
 //! capsule's near-2h bonds off the path, hence the file's critical stretch (README Deviations).
 
 use super::frames::simulation_with_frames;
+use super::relaxation::RelaxWith;
 use super::validate::{CaseResult, Invariants, Pace, ValidationError, advance_to, at_least, at_most};
 use crate::scenario::{Motion, Region, Scenario, SolidFlags};
 use crate::sim::{BackendKind, State};
@@ -134,6 +135,7 @@ pub fn run(
     sc: &Scenario,
     backend: BackendKind,
     frames: Option<(&Path, &str)>,
+    relax: RelaxWith<'_>,
 ) -> Result<ProjectileOutcome, ValidationError> {
     let (centre, r_p) = match sc.boundaries.get(1).map(|b| &b.shape) {
         Some(Region::Sphere { centre, radius }) => (*centre, *radius),
@@ -149,7 +151,7 @@ pub fn run(
     let t_entry = (-0.5 * L_C - r_p - centre[0]) / speed;
     let (mut sim, mut frames) = simulation_with_frames(sc, backend, frames)?;
     let unrelaxed = sim.read_state()?;
-    sim.relax(|_| {})?;
+    super::relaxation::relax_cached(relax, sc, &mut sim)?;
     if let Some(f) = &mut frames {
         f.shoot(&sim, "before");
     }
@@ -389,6 +391,7 @@ pub fn validate(
     out: &Path,
     _progress: bool,
     overrides: &[String],
+    relax: RelaxWith<'_>,
 ) -> Result<Vec<CaseResult>, ValidationError> {
     let started = Instant::now();
     let mut ov = if quick {
@@ -400,7 +403,7 @@ pub fn validate(
     };
     ov.extend_from_slice(overrides);
     let sc = Scenario::from_str_with_overrides(PROJECTILE, "assets/scenarios/projectile.ron", &ov)?;
-    let o = run(&sc, backend, Some((out, "projectile")))?;
+    let o = run(&sc, backend, Some((out, "projectile")), relax)?;
     Ok(rows(&o, started.elapsed().as_secs_f64()))
 }
 

@@ -14,6 +14,7 @@
 
 use super::frames::simulation_with_frames;
 use super::plot::{Chart, Series};
+use super::relaxation::RelaxWith;
 use super::validate::{
     CaseResult, Invariants, Pace, ValidationError, advance_to, at_least, at_most, plot_into, reported,
 };
@@ -120,9 +121,10 @@ pub fn run(
     backend: BackendKind,
     progress: bool,
     frames: Option<(&Path, &str)>,
+    relax: RelaxWith<'_>,
 ) -> Result<ScalpelOutcome, ValidationError> {
     let (mut sim, mut frames) = simulation_with_frames(sc, backend, frames)?;
-    sim.relax(|_| {})?;
+    super::relaxation::relax_cached(relax, sc, &mut sim)?;
     if let Some(f) = &mut frames {
         f.shoot(&sim, "relaxed");
     }
@@ -309,6 +311,7 @@ pub fn validate(
     out: &Path,
     progress: bool,
     overrides: &[String],
+    relax: RelaxWith<'_>,
 ) -> Result<Vec<CaseResult>, ValidationError> {
     let dx = if quick { CI_DX } else { DESKTOP_DX };
     let mut result = Vec::new();
@@ -321,7 +324,7 @@ pub fn validate(
             &[preset_overrides(dx, variant), overrides.to_vec()].concat(),
         )?;
         let short = if variant == Variant::Product { "L2" } else { "L1" };
-        let o = run(&sc, backend, progress, Some((out, &format!("liver_scalpel_{short}"))))?;
+        let o = run(&sc, backend, progress, Some((out, &format!("liver_scalpel_{short}"))), relax)?;
         series.push(Series {
             label: format!("{short}: free piece height above the plate [m]"),
             points: o.free_height.clone(),

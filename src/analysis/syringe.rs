@@ -29,6 +29,7 @@
 
 use super::frames::simulation_with_frames;
 use super::plot::{Chart, Series};
+use super::relaxation::RelaxWith;
 use super::validate::{CaseResult, Invariants, Pace, ValidationError, advance_to, at_least, at_most, plot_into};
 use crate::sim::{BackendKind, State};
 use std::fmt::Write as _;
@@ -392,9 +393,10 @@ pub fn run(
     backend: BackendKind,
     frames: Option<(&Path, &str)>,
     (sample, settle): (f64, f64),
+    relax: RelaxWith<'_>,
 ) -> Result<SyringeOutcome, ValidationError> {
     let (mut sim, mut frames) = simulation_with_frames(sc, backend, frames)?;
-    sim.relax(|_| {})?;
+    super::relaxation::relax_cached(relax, sc, &mut sim)?;
     if let Some(f) = &mut frames {
         f.shoot(&sim, "start");
     }
@@ -487,13 +489,14 @@ pub fn validate(
     out: &Path,
     _progress: bool,
     overrides: &[String],
+    relax: RelaxWith<'_>,
 ) -> Result<Vec<CaseResult>, ValidationError> {
     let started = Instant::now();
     let (ns, nl) = if quick { (12, 11) } else { (32, 30) };
     let text = if quick { scenario_ron(ns, nl, 2.0) } else { SYRINGE.to_string() };
     let sc = crate::scenario::Scenario::from_str_with_overrides(&text, "assets/scenarios/syringe.ron", overrides)?;
     let g = Geometry::new(ns, nl);
-    let o = run(&sc, &g, backend, Some((out, "syringe")), (0.05, 0.1))?;
+    let o = run(&sc, &g, backend, Some((out, "syringe")), (0.05, 0.1), relax)?;
     plot_into(
         out,
         "syringe.png",

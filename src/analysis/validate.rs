@@ -9,6 +9,7 @@
 
 use super::analytic::{brinkman_steady, cantilever_omega1, poiseuille_startup, young_poisson};
 use super::plot::{Chart, Series, line_chart};
+use super::relaxation::RelaxWith;
 use crate::scenario::{Scenario, ScenarioError};
 use crate::sim::{BackendKind, SimError, Simulation, State};
 use serde::Serialize;
@@ -90,6 +91,7 @@ struct Ctx<'a> {
     backend: BackendKind,
     out: &'a Path,
     progress: bool,
+    relax: RelaxWith<'a>,
 }
 
 /// A metric with a lower bound (value ≥ tolerance passes).
@@ -145,6 +147,7 @@ pub fn run_validation(
     backend: BackendKind,
     progress: bool,
     overrides: &[String],
+    relax: RelaxWith<'_>,
 ) -> Result<Report, ValidationError> {
     if let Some(c) = case
         && !CASES.contains(&c)
@@ -157,7 +160,7 @@ pub fn run_validation(
     }
     std::fs::create_dir_all(out)
         .map_err(|e| ValidationError::Io { path: out.display().to_string(), message: e.to_string() })?;
-    let ctx = Ctx { quick, backend, out, progress };
+    let ctx = Ctx { quick, backend, out, progress, relax };
     let mut cases = Vec::new();
     let selected: Vec<&str> = match case {
         Some(c) => vec![c],
@@ -180,13 +183,17 @@ pub fn run_validation(
                     "liver_scalpel_L2" => &[Variant::Product],
                     _ => &[Variant::Product, Variant::Thesis],
                 };
-                super::scalpel::validate(variants, ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides)?
+                super::scalpel::validate(variants, ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, relax)?
             }
-            "projectile" => super::projectile::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides)?,
-            "syringe" => super::syringe::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides)?,
+            "projectile" => {
+                super::projectile::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, relax)?
+            }
+            "syringe" => super::syringe::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, relax)?,
             "dmd" => super::dmd_cases::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
             "capsule" => super::capsule::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
-            "liver_rest" => super::liver_rest::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides)?,
+            "liver_rest" => {
+                super::liver_rest::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, relax)?
+            }
             _ => cantilever(&ctx)?,
         };
         cases.extend(rows);
@@ -712,7 +719,7 @@ fn hydrostatic(ctx: &Ctx) -> Result<Vec<CaseResult>, ValidationError> {
     let (fill, half_w) = (0.1, 0.05);
     let mut sim = Simulation::new(&sc, ctx.backend)?;
     let origin = sim.params().origin;
-    sim.relax(|_| {})?;
+    super::relaxation::relax_cached(ctx.relax, &sc, &mut sim)?;
     let s0 = sim.read_state()?;
     // Bottom row, away from the side walls (x within the central half).
     let bottom: Vec<usize> = (0..s0.liquid.len())

@@ -10,7 +10,8 @@ use std::path::PathBuf;
 pub fn assert_case_passes(case: &str, backend: BackendKind, artifacts: &str) {
     let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/test-artifacts").join(artifacts).join(case);
     let started = std::time::Instant::now();
-    let report = run_validation(Some(case), true, &out, backend, false, &[]).unwrap_or_else(|e| panic!("{case}: {e}"));
+    let report = run_validation(Some(case), true, &out, backend, false, &[], Default::default())
+        .unwrap_or_else(|e| panic!("{case}: {e}"));
     println!("{case} on {backend:?}: {:.1} s", started.elapsed().as_secs_f64());
     assert!(!report.cases.is_empty(), "{case}: no metric reported");
     let mut failed = Vec::new();
