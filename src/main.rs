@@ -122,6 +122,10 @@ enum Cmd {
         /// Also write ParaView frames: frame_NNNNN.vtu beside each CSV frame and frames.pvd.
         #[arg(long)]
         vtk: bool,
+        /// Relax the scenario even when this build has kept its relaxed state (the viewer's cache,
+        /// shared; the new state replaces the kept one; PERFUSE_CACHE_DIR= keeps none).
+        #[arg(long)]
+        fresh_relaxation: bool,
     },
     /// Particle-steps per second of each back-end on a perfused block at several sizes (or on a scenario).
     Bench {
@@ -729,7 +733,7 @@ fn real_main() -> Result<()> {
                 fresh_relaxation,
             )
         }
-        Cmd::Run { scenario, backend, until, steps, out, set, vtk } => {
+        Cmd::Run { scenario, backend, until, steps, out, set, vtk, fresh_relaxation } => {
             let sc = Scenario::load_with_overrides(&scenario, &set)?;
             print_warnings(&sc);
             if let Some(t) = until
@@ -743,7 +747,16 @@ fn real_main() -> Result<()> {
                 _ => None,
             };
             let out = out.unwrap_or_else(|| PathBuf::from("out").join(&sc.name));
-            let opts = RunOptions { backend: backend.into(), length, out: Some(out.clone()), progress: true, vtk };
+            let opts = RunOptions {
+                backend: backend.into(),
+                length,
+                out: Some(out.clone()),
+                progress: true,
+                vtk,
+                // the relaxed state the viewer, `render`, `validate` or an earlier run kept (bit for bit the same)
+                relaxed_cache: perfuse::replay::relaxed_cache::RelaxedCache::user_default(),
+                fresh_relaxation,
+            };
             let summary = run_headless(&sc, &opts).with_context(|| format!("running {}", scenario.display()))?;
             println!(
                 "{}: {} steps, t = {:.4} s, {:.3e} particle-steps/s, dt {:.2e}..{:.2e} s, mass conserved: {}",

@@ -160,6 +160,8 @@ fn every_shipped_scenario_runs_headless() {
             out: Some(out.clone()),
             progress: false,
             vtk: false,
+            relaxed_cache: None,
+            fresh_relaxation: false,
         };
         let summary = run_headless(&sc, &opts).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         assert!(!summary.diverged, "{}: {:?}", sc.name, summary.divergence);
@@ -196,6 +198,8 @@ fn the_summary_reports_the_state_after_the_relaxation() {
             out: None,
             progress: false,
             vtk: false,
+            relaxed_cache: None,
+            fresh_relaxation: false,
         };
         run_headless(&sc, &opts).expect("run")
     };
@@ -241,6 +245,8 @@ fn broken_bonds_are_counted_from_the_end_of_the_relaxation() {
         out: None,
         progress: false,
         vtk: false,
+        relaxed_cache: None,
+        fresh_relaxation: false,
     };
     let summary = run_headless(&sc, &opts).expect("run");
     let r = summary.relaxation.clone().expect("the relaxation block");

@@ -290,6 +290,8 @@ fn hepatic_inflow_over_five_cardiac_cycles() {
         out: None,
         progress: false,
         vtk: false,
+        relaxed_cache: None,
+        fresh_relaxation: false,
     };
     let s = run_headless(&scn, &opts).expect("run");
     let want = s.hepatic_inflow_sim_m3.expect("hepatic inflow integral");

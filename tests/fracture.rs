@@ -72,6 +72,8 @@ fn torn_slab_has_two_components_in_the_summary() {
         out: Some(out.clone()),
         progress: false,
         vtk: false,
+        relaxed_cache: None,
+        fresh_relaxation: false,
     };
     let summary = run_headless(&sc, &opts).expect("run");
     let text = std::fs::read_to_string(out.join("summary.json")).expect("summary");

@@ -41,6 +41,8 @@ fn run(sc: &Scenario, name: &str) -> (perfuse::output::Summary, std::path::PathB
         out: Some(out.clone()),
         progress: false,
         vtk: false,
+        relaxed_cache: None,
+        fresh_relaxation: false,
     };
     (run_headless(sc, &opts).expect("run"), out)
 }

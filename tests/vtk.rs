@@ -300,6 +300,8 @@ fn run_headless_writes_a_vtu_per_frame_and_a_pvd_with_their_times() {
         out: Some(dir.clone()),
         progress: false,
         vtk: true,
+        relaxed_cache: None,
+        fresh_relaxation: false,
     };
     let summary = run_headless(&sc, &opts).expect("run");
     assert!(!summary.diverged);

@@ -220,6 +220,8 @@ fn run_case(
         out: Some(frames.clone()),
         progress,
         vtk: false,
+        relaxed_cache: None,
+        fresh_relaxation: false,
     };
     let summary = run_headless(&sc, &opts).map_err(|e| io(&e, &frames))?;
     if let Some(d) = summary.divergence {

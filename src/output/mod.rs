@@ -113,6 +113,12 @@ pub struct RunOptions {
     /// Also write `frame_NNNNN.vtu` beside each CSV frame (`final.vtu` beside `final.csv`) and
     /// `frames.pvd` listing them (`perfuse run --vtk`); needs `out`.
     pub vtk: bool,
+    /// Where the scenario's relaxation may come from (`replay::relaxed_cache`: a state an earlier
+    /// relaxation of the same scenario by this executable kept, bit for bit the relaxation's); `None`
+    /// relaxes every time.
+    pub relaxed_cache: Option<crate::replay::relaxed_cache::RelaxedCache>,
+    /// Relax even when `relaxed_cache` holds the state, and replace it (`perfuse run --fresh-relaxation`).
+    pub fresh_relaxation: bool,
 }
 
 /// One probe's per-particle selection.
@@ -240,8 +246,13 @@ pub fn run_headless(scenario: &Scenario, opts: &RunOptions) -> Result<Summary, O
     let mut divergence = None;
     let relaxing = scenario.relaxation.as_ref().filter(|r| r.duration > 0.0);
     let unrelaxed = if relaxing.is_some() { Some(sim.read_state()?) } else { None };
-    if let Err(e) = sim.relax(|_| {}) {
-        divergence = Some(e.to_string());
+    let cache = opts.relaxed_cache.as_ref();
+    match crate::replay::relaxed_cache::relax_with_cache(cache, opts.fresh_relaxation, scenario, &mut sim, |_| {}) {
+        Ok(Some(f)) if opts.progress => {
+            eprintln!("relaxed state from {} (--fresh-relaxation relaxes again)", f.display())
+        }
+        Ok(_) => {}
+        Err(e) => divergence = Some(e.to_string()),
     }
     let s0 = sim.read_state()?;
     let relaxation = relaxing.zip(unrelaxed.as_ref()).map(|(r, before)| {
