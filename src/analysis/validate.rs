@@ -140,6 +140,8 @@ fn row(name: &str, resolution: &str, metric: &str, value: f64, tolerance: f64, w
 /// Runs the selected (or all) cases, writes `report.json` and the PNG plots into `out`. `overrides`
 /// (`--set FIELD=VALUE`, as for `perfuse run`) edit the scenario of a named liver_scalpel, projectile or
 /// syringe case after its preset's own edits — a probe of a parameter against the case's criteria.
+/// `relax` says where the cases that relax take their relaxed state from (`relaxation::relax_cached`:
+/// the CLI passes the user's relaxed-state cache; `RelaxWith::default()` relaxes every time).
 pub fn run_validation(
     case: Option<&str>,
     quick: bool,
@@ -183,16 +185,16 @@ pub fn run_validation(
                     "liver_scalpel_L2" => &[Variant::Product],
                     _ => &[Variant::Product, Variant::Thesis],
                 };
-                super::scalpel::validate(variants, ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, relax)?
+                super::scalpel::validate(variants, ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, ctx.relax)?
             }
             "projectile" => {
-                super::projectile::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, relax)?
+                super::projectile::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, ctx.relax)?
             }
-            "syringe" => super::syringe::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, relax)?,
+            "syringe" => super::syringe::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, ctx.relax)?,
             "dmd" => super::dmd_cases::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
             "capsule" => super::capsule::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
             "liver_rest" => {
-                super::liver_rest::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, relax)?
+                super::liver_rest::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, ctx.relax)?
             }
             _ => cantilever(&ctx)?,
         };
