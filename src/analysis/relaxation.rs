@@ -23,13 +23,11 @@ pub struct RelaxWith<'a> {
 /// Relaxes `sim` (built from `sc`, not yet stepped) as [`Simulation::relax`] does or, with a cache in
 /// `with` and not `fresh`, restores the state an earlier relaxation of the same scenario on the same
 /// back-end and adapter *by this executable* kept there — bit for bit the state the relaxation
-/// reaches, so every row measured from it is the same — keeping a new one after relaxing. The restored
-/// file is logged at `info`. The projectile case's relaxation is ≈ 14 of its 27 minutes on two cores.
+/// reaches, so every row measured from it is the same — keeping a new one after relaxing
+/// (`relaxed_cache::relax_with_cache`). The projectile case's relaxation is ≈ 14 of its 27 minutes on
+/// two cores.
 pub fn relax_cached(with: RelaxWith<'_>, sc: &Scenario, sim: &mut Simulation) -> Result<(), SimError> {
-    if let Some(f) = crate::replay::relaxed_cache::relax_with_cache(with.cache, with.fresh, sc, sim, |_| {})? {
-        log::info!("{}: relaxed state restored from {}", sc.name, f.display());
-    }
-    Ok(())
+    crate::replay::relaxed_cache::relax_with_cache(with.cache, with.fresh, sc, sim, |_| {}).map(|_| ())
 }
 
 /// The state after the relaxation against the state before it.

@@ -235,7 +235,8 @@ pub fn build_id() -> u64 {
 
 /// Relaxes `sim` (built from `scenario`, not yet stepped) as [`Simulation::relax`] does — or, unless
 /// `fresh`, restores the state an earlier relaxation of the same scenario on the same engine reached
-/// from `cache`, and keeps a new one there after relaxing. Returns the file restored from. A cache
+/// from `cache`, and keeps a new one there after relaxing. Returns the file restored from (also logged
+/// at `info`). A cache
 /// that cannot be read or written is logged and otherwise changes nothing: the relaxation runs.
 pub fn relax_with_cache(
     cache: Option<&RelaxedCache>,
@@ -251,7 +252,10 @@ pub fn relax_with_cache(
     };
     if !fresh {
         match cache.restore(scenario, sim) {
-            Ok(Some(r)) => return Ok(Some(r.file)),
+            Ok(Some(r)) => {
+                log::info!("{}: relaxed state restored from {}", scenario.name, r.file.display());
+                return Ok(Some(r.file));
+            }
             Ok(None) => {}
             Err(e) => log::warn!("{e}"),
         }
