@@ -118,8 +118,10 @@ struct SimParams {
     capsule_dx_solid: f32,
     // the capsule's seal (forces.rs capsule_seal_pair): 1 on, 0 off
     capsule_seal: f32,
-    _pad_seal0: f32,
-    _pad_seal1: f32,
+    // the capsule's ghost sites (sim::ghosts, ghosts.wgsl): their count (0: the capsule's layers instead), and
+    // the seal's plane beyond the capsule particle (forces.rs capsule_seal_offset)
+    capsule_ghosts: u32,
+    capsule_seal_offset: f32,
     _pad_seal2: f32,
 }
 
@@ -431,6 +433,18 @@ const JACOBI_SWEEPS: u32 = 6u;
 @group(0) @binding(51) var<storage, read_write> solid_normal0: array<vec4<f32>>;
 // each solid particle's bond count in the generated configuration (SolidSet::bond_count0; static)
 @group(0) @binding(52) var<storage, read_write> bond_count0: array<u32>;
+// The capsule's ghost sites (sim::ghosts; ghosts.wgsl): per ghost, 2 vec4 of reference (d, owner bits;
+// m_s, m_l), the placed position (w: 1 where the owner seals), 2 vec4 of frame (F_o d, m_l; n̂_o, m_s),
+// 2 vec4 of state (p, ρ; reaction), the ghost cell list; per solid particle its first ghost (+ the end);
+// per liquid particle whether it sees a blood ghost (density_liquid writes it).
+@group(0) @binding(53) var<storage, read_write> ghost_ref: array<vec4<f32>>;
+@group(0) @binding(54) var<storage, read_write> ghost_pos: array<vec4<f32>>;
+@group(0) @binding(55) var<storage, read_write> ghost_frame: array<vec4<f32>>;
+@group(0) @binding(56) var<storage, read_write> ghost_state: array<vec4<f32>>;
+@group(0) @binding(57) var<storage, read_write> ghost_order: array<CellEntry>;
+@group(0) @binding(58) var<storage, read_write> ghost_cell_start: array<u32>;
+@group(0) @binding(59) var<storage, read_write> ghost_start: array<u32>;
+@group(0) @binding(60) var<storage, read_write> liquid_sees: array<u32>;
 
 // ---- emitters (twin: src/sim/cpu/emit.rs) ----
 const FLOW_MAX: u32 = 1024u;
@@ -775,8 +789,33 @@ fn capsule_seal_share(m_liquid: f32, m_membrane: f32) -> f32 {
 
 // Twin of forces.rs capsule_seal_walks: the seal walks liquid at pressure pr back to the capsule's plane
 // only where the mirror pressure does not hold it (p ≤ 0).
+// With the capsule's ghost sites it never walks.
 fn capsule_seal_walks(pr: f32) -> bool {
-    return pr <= 0.0;
+    return params.capsule_ghosts == 0u && pr <= 0.0;
+}
+
+// Whether liquid at x_i − x_g = xig counts ghost g (its owner sealing): x_i beneath the owner's capsule
+// by its normal or by the ghost's offset. Twin of ghosts.rs ghost_counts.
+fn ghost_counts(g: u32, xig: vec3<f32>) -> bool {
+    if (ghost_pos[g].w == 0.0) {
+        return false;
+    }
+    let fd = ghost_frame[2u * g].xyz;
+    let n = ghost_frame[2u * g + 1u].xyz;
+    let xio = xig + fd;
+    return (any(n != vec3<f32>(0.0)) && dot3(xio, n) <= 0.0) || dot3(xio, fd) <= 0.0;
+}
+
+// Twin of ghosts.rs ghost_on_liquid: liquid_from_boundary with the ghost's wall pressure p_g and density
+// ρ_g, `outside` taken off both pressures.
+fn ghost_on_liquid(rho: f32, pr: f32, n_l: f32, vi: vec3<f32>, m_g: f32, v_o: vec3<f32>, xig: vec3<f32>, r: f32,
+                   p_g: f32, rho_g: f32, outside: f32) -> vec3<f32> {
+    let k = params.k_liquid;
+    let grad = xig * grad_spiky_factor(k, r);
+    let bracket = (pr - outside) / (rho * rho) + (p_g - outside) / (rho_g * rho_g);
+    var a = grad * (-n_l * m_g * bracket * params.kappa_s);
+    a += (v_o - vi) * (params.kappa_v * params.eta / rho * (m_g / rho) * lap_viscosity(k, r));
+    return a;
 }
 
 // Twin of forces.rs SealPair: one intact membrane particle's part in the seal on one liquid particle.
@@ -798,7 +837,7 @@ fn capsule_seal_pair(n: vec3<f32>, xij: vec3<f32>, r: f32, v_rel: vec3<f32>) -> 
     }
     sp.w = w_poly6(params.k_liquid, r);
     let depth = 0.25 * params.capsule_dx_liquid;
-    let sd = dot3(xij, n);
+    let sd = dot3(xij, n) - params.capsule_seal_offset;
     if (sd <= -depth || sd >= depth) {
         return sp;
     }

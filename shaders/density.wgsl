@@ -88,8 +88,34 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    // One pass over the solid (R_× ≥ R_l): membrane particles as liquid boundary, and nˢ (D-8).
+    // the capsule's ghost sites (ghosts.wgsl): tissue sites in nˢ within R_×, blood sites in ρ within R_l
     var sum_s = 0.0;
+    var sees = false;
+    if (params.capsule_ghosts != 0u) {
+        let r2g = max(r2x, r2l);
+        for (var k = kb; k < ke; k += kstep) {
+            let c = nbr_span(ci, k);
+            if (c.x < 0) { continue; }
+            for (var q = ghost_cell_start[c.x]; q < ghost_cell_start[c.y + 1]; q++) {
+                let e = ghost_order[q];
+                let xig = min_image_wrapped(xi - e.pos);
+                let r2 = dot3(xig, xig);
+                if (r2 < r2g && ghost_counts(e.id, xig)) {
+                    let r = sqrt(r2);
+                    let m_l = ghost_frame[2u * e.id].w;
+                    if (r < kl.r && m_l > 0.0) {
+                        sees = true;
+                        rho += m_l * w_poly6(kl, r);
+                    }
+                    if (r < kx.r) {
+                        sum_s += ghost_frame[2u * e.id + 1u].w * w_poly6(kx, r);
+                    }
+                }
+            }
+        }
+    }
+    liquid_sees[i] = select(0u, 1u, sees);
+    // One pass over the solid (R_× ≥ R_l): membrane particles as liquid boundary, and nˢ (D-8).
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
@@ -104,22 +130,24 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
                     let n = capsule_normal(solid_f[j], solid_normal0[j].xyz);
                     if (capsule_inner(n, xij)) {
                         // beneath the capsule: its layers continue the liquid (ρ) and the tissue (nˢ)
-                        // (forces.rs capsule_inner)
-                        for (var layer = 0u; layer < params.capsule_liquid_layers; layer++) {
+                        // (forces.rs capsule_inner); with ghosts, the ghosts do
+                        let layers = select(params.capsule_liquid_layers, 0u, params.capsule_ghosts != 0u);
+                        let solid_layers = select(params.capsule_solid_layers, 0u, params.capsule_ghosts != 0u);
+                        for (var layer = 0u; layer < layers; layer++) {
                             let xig = capsule_liquid_layer(n, xij, layer);
                             let rg = sqrt(dot3(xig, xig));
                             if (rg < kl.r) {
                                 rho += solid_vel[j].w * w_poly6(kl, rg);
                             }
                         }
-                        for (var layer = 1u; layer <= params.capsule_solid_layers; layer++) {
+                        for (var layer = 1u; layer <= solid_layers; layer++) {
                             let xig = capsule_solid_layer(n, xij, layer);
                             let rg = sqrt(dot3(xig, xig));
                             if (rg < kx.r) {
                                 sum_s += solid_pos[j].w * w_poly6(kx, rg);
                             }
                         }
-                    } else if (r < kl.r) {
+                    } else if (r < kl.r && !sees) {
                         rho += solid_vel[j].w * w_poly6(kl, r);
                     }
                 }

@@ -340,6 +340,28 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
             }
         }
     }
+    // the capsule's blood ghosts as boundary particles with their wall pressure (ghosts.wgsl)
+    if (params.capsule_ghosts != 0u) {
+        let r2g = kl.r * kl.r;
+        for (var k = kb; k < ke; k += kstep) {
+            let c = nbr_span(ci, k);
+            if (c.x < 0) { continue; }
+            for (var q = ghost_cell_start[c.x]; q < ghost_cell_start[c.y + 1]; q++) {
+                let e = ghost_order[q];
+                let xig = min_image_wrapped(xi - e.pos);
+                let r2 = dot3(xig, xig);
+                if (r2 < r2g && ghost_counts(e.id, xig)) {
+                    let m_g = ghost_frame[2u * e.id].w;
+                    let st = ghost_state[2u * e.id];
+                    if (m_g > 0.0 && st.y > 0.0) {
+                        let v_o = solid_vel[bitcast<u32>(ghost_ref[2u * e.id].w)].xyz;
+                        a += ghost_on_liquid(rho, pr, n_l, vi, m_g, v_o, xig, sqrt(r2), st.x, st.y, 0.0);
+                    }
+                }
+            }
+        }
+    }
+    let sees_ghost = liquid_sees[i] != 0u;
     // One pass over the solid (R_× ≥ R_l): membrane particles as boundary, and friction (2.17).
     let r2x = kx.r * kx.r;
     var f = vec3<f32>(0.0);
@@ -367,15 +389,16 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
                         seal_back += sp.back;
                     }
                     if (capsule_inner(n, xij)) {
-                        // beneath the capsule: its liquid layers (forces.rs capsule_inner)
-                        for (var layer = 0u; layer < params.capsule_liquid_layers; layer++) {
+                        // beneath the capsule: its liquid layers (forces.rs capsule_inner), or its ghosts
+                        let layers = select(params.capsule_liquid_layers, 0u, params.capsule_ghosts != 0u);
+                        for (var layer = 0u; layer < layers; layer++) {
                             let xig = capsule_liquid_layer(n, xij, layer);
                             let rg = sqrt(dot3(xig, xig));
                             if (rg < kl.r) {
                                 a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xig, rg, -1.0, 0.0, 1.0, g, 0.0);
                             }
                         }
-                    } else {
+                    } else if (!sees_ghost) {
                         a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xij, r, -1.0, 0.0, 1.0, g, 0.0);
                     }
                 }
@@ -599,8 +622,10 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                     if (membrane && r2 < r2l) {
                         let vj = liquid_vel[j].xyz;
                         if (capsule_inner(normal_i, -xij)) {
-                            // the reaction of its liquid layers on liquid j beneath it (forces.rs capsule_inner)
-                            for (var layer = 0u; layer < params.capsule_liquid_layers; layer++) {
+                            // the reaction of its liquid layers on liquid j beneath it (forces.rs capsule_inner);
+                            // with ghosts, theirs (below)
+                            let layers = select(params.capsule_liquid_layers, 0u, params.capsule_ghosts != 0u);
+                            for (var layer = 0u; layer < layers; layer++) {
                                 let xjg = capsule_liquid_layer(normal_i, -xij, layer);
                                 let rg = sqrt(dot3(xjg, xjg));
                                 if (rg < kl.r) {
@@ -609,7 +634,7 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                                     fm -= on_g * mj;
                                 }
                             }
-                        } else {
+                        } else if (liquid_sees[j] == 0u) {
                             let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, vj, vi4.w, vi, -xij, r, -1.0, 0.0, 1.0, g_l,
                                                         params.ambient_pressure);
                             fm -= on_j * mj;
@@ -629,6 +654,12 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
             a += fw / pi4.w;
         }
         if (membrane) {
+            // the reaction of its ghosts' boundary forces on the liquid (ghosts.wgsl ghost_pressure)
+            if (params.capsule_ghosts != 0u) {
+                for (var k = ghost_start[i]; k < ghost_start[i + 1u]; k++) {
+                    fm += ghost_state[2u * k + 1u].xyz;
+                }
+            }
             a += fm / pi4.w;
         }
     }

@@ -10,7 +10,6 @@ use common::gpu::gpu_test;
 use common::scenes::{perfused_block, perfused_cube_under_gravity, sliding_block, wicking_block};
 use glam::{Mat3, Vec3};
 use perfuse::scenario::generate;
-use perfuse::sim::cpu::grid::Neighbours;
 use perfuse::sim::cpu::{CpuSolver, Nbrs, ObjectContact, density, forces, solid};
 use perfuse::sim::gpu::bindings::Slot;
 use perfuse::sim::gpu::gpu_types::CellEntry;
@@ -77,14 +76,12 @@ fn max_len(a: &[Vec3]) -> f32 {
 }
 
 fn nbrs(cpu: &CpuSolver) -> Nbrs<'_> {
-    let p = &cpu.params;
-    let mk = |list| Neighbours { grid: &p.grid, list, period: p.periodic_len(), three_d: p.dim.n() == 3 };
-    Nbrs { liquid: mk(&cpu.grids.liquid), solid: mk(&cpu.grids.solid), boundary: mk(&cpu.grids.boundary) }
+    cpu.nbrs()
 }
 
 /// The CPU evaluation of `CpuSolver::evaluate` (private there), pass by pass, on `cpu`'s state.
 fn cpu_evaluate(cpu: &mut CpuSolver) {
-    let ((rho_l, n_s_l, p_l), (drho_s, n_l_s, n_s_s, p_s)) = {
+    let (density::LiquidDensities { rho: rho_l, n_s: n_s_l, p: p_l, .. }, (drho_s, n_l_s, n_s_s, p_s)) = {
         let nb = nbrs(cpu);
         let p = &cpu.params;
         (
@@ -148,6 +145,7 @@ fn force_ctx<'a>(cpu: &'a CpuSolver, p: &'a Params, contacts: &'a [ObjectContact
         contacts,
         gravity_liquid: true,
         outlets: &p.outlets,
+        sees_ghost: &cpu.sees_ghost,
     }
 }
 
@@ -929,6 +927,101 @@ fn capsule_seal_matches_cpu() {
         let st = &cpu.st;
         let vx_pressed = forces::forces_liquid(&ctx, &pressed, &st.solid, &st.boundary, &nb, true).xsph.expect("ṽ");
         assert!(vx_pressed == without_vx, "the seal walked blood under pressure");
+    });
+}
+
+/// The capsule's ghost sites (`membrane.ghosts`, `sim::ghosts`) on both back-ends: the perfused cube
+/// under gravity after 50 CPU steps. One evaluation: the liquid's ρ, nˢ and p agree within 1e-5 (p
+/// within 1e-6 k), the same liquid sees a blood ghost, each ghost's wall pressure, density and
+/// reaction agree within 1e-4 of their largest, and the accelerations within 1e-4 of max |a|; the
+/// ghosts give the blood at the capsule the generated fractions where the layers did not, and their
+/// forces on the blood and the reactions on the capsule sum to zero. Then 300 steps from the generated
+/// state: positions within 1e-3 h.
+#[test]
+fn capsule_ghosts_match_cpu() {
+    gpu_test("capsule_ghosts_match_cpu", |ctx| {
+        let sc = perfused_cube_under_gravity(
+            "capsule_ghosts",
+            "membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483, ghosts: true)),",
+        );
+        let fresh = solver_for(&sc);
+        let n_ghosts = fresh.ghosts.len();
+        let blood_ghosts = fresh.ghosts.m_l.iter().filter(|&&m| m > 0.0).count();
+        assert!(fresh.params.capsule_ghosts && blood_ghosts > 0 && blood_ghosts < n_ghosts, "{n_ghosts} ghosts");
+        assert!(fresh.ghosts.owner.is_sorted(), "ghosts sorted by owner");
+        let mut cpu = stepped(fresh, 50);
+        // the blood squeezed 3 % toward its centre (under pressure) and moving outward at up to ≈ 1 cm/s
+        let n = cpu.st.liquid.x.len() as f32;
+        let centre = cpu.st.liquid.x.iter().fold(Vec3::ZERO, |a, x| a + *x) / n;
+        for (x, v) in cpu.st.liquid.x.iter_mut().zip(cpu.st.liquid.v.iter_mut()) {
+            *x = centre + (*x - centre) * 0.97;
+            *v += (*x - centre) * 1.0;
+        }
+        cpu.build_grids();
+        let mut gpu = gpu_from(ctx.clone(), &cpu);
+        gpu.run_stages(passes::EVALUATE).expect("GPU evaluation");
+        let nl = cpu.st.liquid.x.len();
+        let dens: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidDens, nl).expect("liquid densities");
+        let sees: Vec<u32> = gpu.read_slot(Slot::LiquidSees, nl).expect("liquid sees");
+        let gst: Vec<[f32; 4]> = gpu.read_slot(Slot::GhostState, 2 * n_ghosts).expect("ghost state");
+        let al: Vec<Vec3> = gpu.read_slot(Slot::LiquidAcc, nl).expect("liquid a").iter().map(xyz).collect();
+        let as_: Vec<Vec3> =
+            gpu.read_slot(Slot::SolidAcc, cpu.st.solid.x.len()).expect("solid a").iter().map(xyz).collect();
+        cpu.evaluate(false);
+        let (l, s) = (&cpu.st.liquid, &cpu.st.solid);
+        let col = |k: usize| dens.iter().map(|d| d[k]).collect::<Vec<f32>>();
+        let (d_rho, d_ns, d_p) = (
+            max_abs_diff(&col(0), &l.rho) / max_abs(&l.rho),
+            max_abs_diff(&col(2), &l.n_s),
+            max_abs_diff(&col(3), &l.p),
+        );
+        let seen: Vec<bool> = sees.iter().map(|&b| b != 0).collect();
+        let n_seeing = cpu.sees_ghost.iter().filter(|&&b| b).count();
+        let st = &cpu.ghost_state;
+        let (gp, grho): (Vec<f32>, Vec<f32>) = (st.iter().map(|g| g.p).collect(), st.iter().map(|g| g.rho).collect());
+        let react: Vec<Vec3> = st.iter().map(|g| g.reaction).collect();
+        let gpu_p: Vec<f32> = (0..n_ghosts).map(|g| gst[2 * g][0]).collect();
+        let gpu_rho: Vec<f32> = (0..n_ghosts).map(|g| gst[2 * g][1]).collect();
+        let gpu_react: Vec<Vec3> = (0..n_ghosts).map(|g| xyz(&gst[2 * g + 1])).collect();
+        let (d_gp, d_grho, d_react) =
+            (max_abs_diff(&gpu_p, &gp), max_abs_diff(&gpu_rho, &grho), max_vec_diff(&gpu_react, &react));
+        let (d_al, d_as) = (max_vec_diff(&al, &l.a), max_vec_diff(&as_, &s.a));
+        // momentum: the ghosts' forces on the blood (its a less the a without them) against the reactions
+        let without = {
+            let no = Nbrs { ghosts: None, ..cpu.nbrs() };
+            let ctx = force_ctx(&cpu, &cpu.params, &cpu.contacts);
+            forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &no, false).a
+        };
+        let on_blood = l.a.iter().zip(&without).zip(&l.m).fold(Vec3::ZERO, |f, ((a, b), m)| f + (*a - *b) * *m);
+        let reactions = react.iter().fold(Vec3::ZERO, |f, r| f + *r);
+        let gross: f32 = react.iter().map(|r| r.length()).sum();
+        eprintln!(
+            "capsule ghosts: {n_ghosts} ({blood_ghosts} blood), {n_seeing} of {nl} liquid see one; ρ {d_rho:.3e} rel, \
+             nˢ {d_ns:.3e}, p {d_p:.3e} Pa; ghost p {d_gp:.3e} of {:.3e}, ρ {d_grho:.3e}, reaction {d_react:.3e} of \
+             {:.3e} N; liquid a {d_al:.3e} of {:.3e}, solid a {d_as:.3e} of {:.3e}; ghost forces on the blood {:.3e} N, \
+             reactions {:.3e} N (gross {gross:.3e})",
+            max_abs(&gp),
+            max_len(&react),
+            max_len(&l.a),
+            max_len(&s.a),
+            on_blood.length(),
+            reactions.length()
+        );
+        assert!(n_seeing > 0 && seen == cpu.sees_ghost, "the same liquid sees a blood ghost");
+        assert!(d_rho <= 1e-5 && d_ns <= 1e-5 && d_p <= 1e-6 * cpu.params.k_l.max(1.0));
+        assert!(max_abs(&gp) > 0.0 && gross > 0.0, "the scene must load the ghosts");
+        assert!(d_gp <= 1e-4 * max_abs(&gp) && d_grho <= 1e-4 * max_abs(&grho));
+        assert!(d_react <= 1e-4 * max_len(&react), "ghost reactions differ by {d_react:e}");
+        assert!(d_al <= 1e-4 * max_len(&l.a), "liquid accelerations differ by {d_al:e}");
+        assert!(d_as <= 1e-4 * max_len(&s.a), "solid accelerations differ by {d_as:e}");
+        assert!((on_blood + reactions).length() <= 1e-4 * gross, "ghost forces and reactions do not cancel");
+        // 300 steps from the generated state
+        let mut cpu = solver_for(&sc);
+        let mut gpu = gpu_from(ctx, &cpu);
+        let (_, cs, d_x) = step_both(&mut cpu, &mut gpu, 300);
+        let h = cpu.params.k_solid.h;
+        eprintln!("capsule ghosts, 300 steps (t = {:.3e} s): max |Δx| {d_x:.3e} m ({:.3e} h)", cs.t, d_x / h);
+        assert!(d_x <= 1e-3 * h, "positions diverged");
     });
 }
 

@@ -675,6 +675,13 @@ pub struct Membrane {
     /// pressure, and seeps where that pressure is zero.
     #[serde(default = "yes")]
     pub seal: bool,
+    /// The capsule's ghost sites (default false; README: deviations from SPEC, "The capsule's missing
+    /// lattice sites as ghosts"): the tissue's and the blood's lattice sites that the organ's surface
+    /// truncates within R of the body, carried by their nearest capsule particle and counted for the
+    /// blood beneath it — nˢ, ρ and a wall pressure (`sim::ghosts`) — in place of the capsule's
+    /// virtual layers; the seal then acts at the organ's surface, Δx_s/2 beyond the capsule's particles.
+    #[serde(default)]
+    pub ghosts: bool,
 }
 fn unit_ratio() -> f64 {
     1.0
@@ -691,6 +698,7 @@ impl Default for Membrane {
             angle: std::f64::consts::FRAC_PI_4,
             stiffness: 1.0,
             seal: true,
+            ghosts: false,
         }
     }
 }

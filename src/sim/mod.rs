@@ -9,6 +9,7 @@ pub mod bed;
 pub mod cardio;
 pub mod cpu;
 pub mod frame;
+pub mod ghosts;
 pub mod gpu;
 pub mod kernels;
 pub mod params;

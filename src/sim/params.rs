@@ -63,6 +63,9 @@ pub struct Params {
     pub capsule_dx_solid: f32,
     /// The capsule's seal (`membrane.seal`, `forces::capsule_seal`): 1 on, 0 off.
     pub capsule_seal: f32,
+    /// The capsule's ghost sites stand for the blood's and the tissue's missing lattice sites in place
+    /// of its virtual layers (`membrane.ghosts`, `sim::ghosts`).
+    pub capsule_ghosts: bool,
     pub k_s: f32,
     pub k_sat: f32,
     pub n_sat: f32,
@@ -366,6 +369,7 @@ impl Params {
                 _ => 0,
             },
             capsule_dx_solid: g.dx_solid as f32,
+            capsule_ghosts: matches!(&s.membrane, Some(m) if m.ghosts && g.dx_liquid > 0.0 && g.dx_solid > 0.0),
             capsule_seal: match &s.membrane {
                 Some(m) if m.seal && g.dx_liquid > 0.0 && g.dx_solid > 0.0 => 1.0,
                 _ => 0.0,

@@ -20,7 +20,19 @@ use crate::scenario::SolidFlags;
 use crate::sim::params::{OutletRegion, Params};
 use rayon::prelude::*;
 
-/// Returns (ρ, nˢ, p) for every liquid particle; `outlets` are the pressure outlets in effect.
+/// What `density_liquid` gives every liquid particle.
+#[derive(Clone, Debug, Default)]
+pub struct LiquidDensities {
+    pub rho: Vec<f32>,
+    pub n_s: Vec<f32>,
+    pub p: Vec<f32>,
+    /// Whether it counts a blood ghost of the capsule (`sim::ghosts`): then the capsule's particles are
+    /// no wall for it (the ghosts stand for the blood beyond).
+    pub sees_ghost: Vec<bool>,
+}
+
+/// Returns ρ, nˢ and p for every liquid particle, and whether it sees a blood ghost; `outlets` are the
+/// pressure outlets in effect.
 pub fn density_liquid(
     p: &Params,
     outlets: &[OutletRegion],
@@ -28,10 +40,10 @@ pub fn density_liquid(
     s: &SolidSet,
     b: &BoundarySet,
     nb: &Nbrs,
-) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+) -> LiquidDensities {
     let kl = &p.k_liquid;
     let kx = &p.k_cross;
-    let out: Vec<(f32, f32, f32)> = (0..l.x.len())
+    let out: Vec<(f32, f32, f32, bool)> = (0..l.x.len())
         .into_par_iter()
         .with_min_len(super::MIN_PAR_LEN)
         .map(|i| {
@@ -49,16 +61,33 @@ pub fn density_liquid(
                     sum_bs += b.m_sn[j] * kx.w_poly6(r);
                 }
             });
-            // One pass over the solid (R_× ≥ R_l): membrane particles as liquid boundary, and nˢ.
+            // the capsule's ghost sites (`sim::ghosts`): tissue sites in nˢ within R_×, blood sites in ρ
+            // within R_l
             let mut sum_s = 0.0f32;
+            let mut sees = false;
+            if let Some(gn) = &nb.ghosts {
+                gn.for_each(xi, kx.r.max(kl.r), |g, _, r| {
+                    if r < kl.r && gn.gh.m_l[g] > 0.0 {
+                        sees = true;
+                        rho += gn.gh.m_l[g] * kl.w_poly6(r);
+                    }
+                    if r < kx.r {
+                        sum_s += gn.gh.m_s[g] * kx.w_poly6(r);
+                    }
+                });
+            }
+            // One pass over the solid (R_× ≥ R_l): membrane particles as liquid boundary, and nˢ.
             nb.solid.for_each(xi, kx.r, |j, xij, r| {
                 if s.flags[j] & SolidFlags::MEMBRANE != 0 {
                     let n = capsule_normal(s.def_grad[j], s.normal0[j]);
                     if capsule_inner(p, n, xij) {
-                        // beneath the capsule: its layers continue the liquid (ρ) and the tissue (nˢ)
-                        capsule_liquid_layers(p, n, xij, kl.r, |_, rg| rho += s.m_bl[j] * kl.w_poly6(rg));
-                        capsule_solid_layers(p, n, xij, kx.r, |_, rg| sum_s += s.m[j] * kx.w_poly6(rg));
-                    } else if r < kl.r {
+                        // beneath the capsule: its layers continue the liquid (ρ) and the tissue (nˢ);
+                        // with ghosts, the ghosts do
+                        if !p.capsule_ghosts {
+                            capsule_liquid_layers(p, n, xij, kl.r, |_, rg| rho += s.m_bl[j] * kl.w_poly6(rg));
+                            capsule_solid_layers(p, n, xij, kx.r, |_, rg| sum_s += s.m[j] * kx.w_poly6(rg));
+                        }
+                    } else if r < kl.r && !sees {
                         rho += s.m_bl[j] * kl.w_poly6(r);
                     }
                 }
@@ -70,21 +99,25 @@ pub fn density_liquid(
             // p_a + (2.53) clamped at 0 unless the liquid may take tension here (`liquid_tension_below_ns`,
             // `liquid_tension_in`); an outlet's buffer carries its prescribed pressure and density
             match OutletRegion::find(outlets, xi) {
-                Some(o) => (o.density, n_s, o.pressure),
-                None if p.liquid_may_pull(xi, n_s) => (rho, n_s, raw),
-                None => (rho, n_s, raw.max(0.0)),
+                Some(o) => (o.density, n_s, o.pressure, sees),
+                None if p.liquid_may_pull(xi, n_s) => (rho, n_s, raw, sees),
+                None => (rho, n_s, raw.max(0.0), sees),
             }
         })
         .collect();
-    let mut rho = Vec::with_capacity(out.len());
-    let mut n_s = Vec::with_capacity(out.len());
-    let mut pr = Vec::with_capacity(out.len());
-    for (a, b, c) in out {
-        rho.push(a);
-        n_s.push(b);
-        pr.push(c);
+    let mut d = LiquidDensities {
+        rho: Vec::with_capacity(out.len()),
+        n_s: Vec::with_capacity(out.len()),
+        p: Vec::with_capacity(out.len()),
+        sees_ghost: Vec::with_capacity(out.len()),
+    };
+    for (a, b, c, e) in out {
+        d.rho.push(a);
+        d.n_s.push(b);
+        d.p.push(c);
+        d.sees_ghost.push(e);
     }
-    (rho, n_s, pr)
+    d
 }
 
 /// Returns (dρ/dt, nˡ, nˢ, p) for every solid particle; nˡ summed over the liquid (`density_solid`) or,

@@ -25,6 +25,17 @@ pub struct ForceCtx<'a> {
     pub gravity_liquid: bool,
     /// The pressure outlets in effect (`Params::outlets_in_effect`).
     pub outlets: &'a [OutletRegion],
+    /// Per liquid particle, whether it sees a blood ghost of the capsule (`density::LiquidDensities`;
+    /// empty without ghosts): then the capsule's particles are no wall for it.
+    pub sees_ghost: &'a [bool],
+}
+
+impl ForceCtx<'_> {
+    /// Whether liquid i sees a blood ghost (`sees_ghost`).
+    #[inline]
+    pub fn sees_ghost(&self, i: usize) -> bool {
+        self.sees_ghost.get(i) == Some(&true)
+    }
 }
 
 /// Acceleration of solid particle i from the hourglass control of bond (i, j) (`numerics.hourglass`,
@@ -431,9 +442,22 @@ pub const CAPSULE_SEAL_STOP_STEPS: f32 = 4.0;
 /// specimen moving (8³: fastest solid 6.26 mm/s at t = 0 with every particle walked, 1.82 with p ≤ 0
 /// alone; the capsule case holds its indented blood either way; README, Deviations). Twin of
 /// `capsule_seal_walks` in common.wgsl.
+///
+/// With the capsule's ghost sites (`membrane.ghosts`) the seal never walks: the ghosts give the blood
+/// at the capsule the generated fractions and a wall pressure, so nothing pushes it outward that the
+/// stop alone does not hold (README, Deviations: the walk-back's spikes, 24 mm/s, in the probe).
 #[inline]
-pub fn capsule_seal_walks(pr: f32) -> bool {
-    pr <= 0.0
+pub fn capsule_seal_walks(p: &Params, pr: f32) -> bool {
+    !p.capsule_ghosts && pr <= 0.0
+}
+
+/// Where the seal's plane lies beyond the capsule particle along its normal: at the particle itself,
+/// or with the capsule's ghost sites at the organ's surface, Δx_s/2 beyond it (the particle stands for
+/// the volume Δx_s³ around it; the ghosts' blood fills the half spacing beneath the surface, which the
+/// seal at the particle's plane would cut off). Twin of `capsule_seal_offset` in common.wgsl.
+#[inline]
+pub fn capsule_seal_offset(p: &Params) -> f32 {
+    if p.capsule_ghosts { 0.5 * p.capsule_dx_solid } else { 0.0 }
 }
 
 /// Whether membrane particle j still seals: three quarters of its bonds intact (SPEC §4.6). A capsule
@@ -474,7 +498,7 @@ pub fn capsule_seal_pair(p: &Params, n: Vec3, xij: Vec3, r: f32, v_rel: Vec3) ->
     }
     let w = p.k_liquid.w_poly6(r);
     let depth = 0.25 * p.capsule_dx_liquid;
-    let sd = xij.dot(n);
+    let sd = xij.dot(n) - capsule_seal_offset(p);
     if sd <= -depth || sd >= depth {
         return SealPair { w, ..none };
     }
@@ -620,6 +644,17 @@ pub fn forces_liquid(
                     a -= xij * (cohesion_pair(p.cohesion_lb, kl.r, r) * inv_m / r);
                 }
             });
+            // the capsule's blood ghosts as boundary particles with their wall pressure (`ghosts`)
+            if let Some(gn) = &nb.ghosts {
+                gn.for_each(xi, kl.r, |k, xig, r| {
+                    let (m_g, st) = (gn.gh.m_l[k], &gn.state[k]);
+                    if m_g > 0.0 && st.rho > 0.0 {
+                        let v_o = s.v[gn.gh.owner[k] as usize];
+                        a += super::ghosts::ghost_on_liquid(p, rho, pr, n_l, vi, m_g, v_o, xig, r, st, 0.0);
+                    }
+                });
+            }
+            let sees_ghost = c.sees_ghost(i);
             // One pass over the solid (R_× ≥ R_l): membrane particles as boundary, and friction (2.17).
             let mut f = Vec3::ZERO;
             let (mut seal_w, mut seal_sum, mut seal_back) = (0.0f32, Vec3::ZERO, Vec3::ZERO);
@@ -635,11 +670,13 @@ pub fn forces_liquid(
                         seal_back += sp.back;
                     }
                     if capsule_inner(p, n, xij) {
-                        // beneath the capsule: its liquid layers (`capsule_inner`)
-                        capsule_liquid_layers(p, n, xij, kl.r, |xig, rg| {
-                            a += liquid_from_boundary(p, rho, pr, n_l, vi, m_b, vb, xig, rg, mirror, 1.0, g, 0.0);
-                        });
-                    } else {
+                        // beneath the capsule: its liquid layers (`capsule_inner`), or its ghosts
+                        if !p.capsule_ghosts {
+                            capsule_liquid_layers(p, n, xij, kl.r, |xig, rg| {
+                                a += liquid_from_boundary(p, rho, pr, n_l, vi, m_b, vb, xig, rg, mirror, 1.0, g, 0.0);
+                            });
+                        }
+                    } else if !sees_ghost {
                         a += liquid_from_boundary(p, rho, pr, n_l, vi, m_b, vb, xij, r, mirror, 1.0, g, 0.0);
                     }
                 }
@@ -660,7 +697,7 @@ pub fn forces_liquid(
             a -= seal_sum * scale;
             // and its walk back to the capsule's plane, in ṽ alone, where the mirror pressure does not
             // hold the blood (`capsule_seal_walks`)
-            let back = if seal_w > 0.0 && capsule_seal_walks(pr) { seal_back / seal_w } else { Vec3::ZERO };
+            let back = if seal_w > 0.0 && capsule_seal_walks(p, pr) { seal_back / seal_w } else { Vec3::ZERO };
             (a + g, (xsph_velocity(vi, d_xsph, p.xsph_l) + back, scale))
         })
         .unzip();
@@ -854,14 +891,17 @@ pub fn forces_solid(
                         let (mirror, p_a) = (ObjectContact::MIRROR, p.ambient_pressure);
                         let xjb = -xij;
                         if capsule_inner(p, normal_i, xjb) {
-                            // the reaction of its liquid layers on liquid j beneath it (`capsule_inner`)
-                            capsule_liquid_layers(p, normal_i, xjb, kl.r, |xjg, rg| {
-                                let on_j = liquid_from_boundary(
-                                    p, rho_j, p_j, nl_j, v_j, m_b, vi, xjg, rg, mirror, 1.0, g_l, p_a,
-                                );
-                                fm -= on_j * l.m[j];
-                            });
-                        } else {
+                            // the reaction of its liquid layers on liquid j beneath it (`capsule_inner`);
+                            // with ghosts, theirs (below)
+                            if !p.capsule_ghosts {
+                                capsule_liquid_layers(p, normal_i, xjb, kl.r, |xjg, rg| {
+                                    let on_j = liquid_from_boundary(
+                                        p, rho_j, p_j, nl_j, v_j, m_b, vi, xjg, rg, mirror, 1.0, g_l, p_a,
+                                    );
+                                    fm -= on_j * l.m[j];
+                                });
+                            }
+                        } else if !c.sees_ghost(j) {
                             let on_j =
                                 liquid_from_boundary(p, rho_j, p_j, nl_j, v_j, m_b, vi, xjb, r, mirror, 1.0, g_l, p_a);
                             fm -= on_j * l.m[j];
@@ -878,6 +918,12 @@ pub fn forces_solid(
                     a += fw / s.m[i];
                 }
                 if membrane {
+                    // the reaction of its ghosts' boundary forces on the liquid (`ghosts::ghost_pressure`)
+                    if let Some(gn) = &nb.ghosts {
+                        for k in gn.gh.start[i] as usize..gn.gh.start[i + 1] as usize {
+                            fm += gn.state[k].reaction;
+                        }
+                    }
                     a += fm / s.m[i];
                 }
             }

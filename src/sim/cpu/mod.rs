@@ -13,6 +13,7 @@ pub mod dt;
 pub mod emit;
 pub mod forces;
 pub mod fracture;
+pub mod ghosts;
 pub mod grid;
 pub mod integrate;
 pub mod solid;
@@ -167,6 +168,8 @@ pub struct Grids {
     pub liquid: CellList,
     pub solid: CellList,
     pub boundary: CellList,
+    /// The capsule's ghost sites (`sim::ghosts`; empty without).
+    pub ghost: CellList,
 }
 
 /// Accumulated wall time per pass family (the CPU counterpart of GPU timestamp queries).
@@ -241,6 +244,13 @@ pub struct CpuSolver {
     /// The grid generation whose positions the solid's nˡ (its sum over the liquid) was taken on: the
     /// same reuse for `density_solid_kept`.
     solid_n_l_generation: Option<u64>,
+    /// The capsule's ghost sites (`membrane.ghosts`, `sim::ghosts`; empty without), where the last grid
+    /// build placed them, and their wall pressures of the last evaluation (`ghosts::ghost_pressure`).
+    pub ghosts: crate::sim::ghosts::Ghosts,
+    pub ghost_placed: ghosts::Placed,
+    pub ghost_state: Vec<ghosts::GhostState>,
+    /// Per liquid particle, whether it sees a blood ghost (`density::LiquidDensities::sees_ghost`).
+    pub sees_ghost: Vec<bool>,
 }
 
 impl CpuSolver {
@@ -348,10 +358,30 @@ impl CpuSolver {
             grids: Grids::default(),
             contacts,
             last_good: CpuState::default(),
+            ghosts: crate::sim::ghosts::Ghosts::none(ns),
+            ghost_placed: ghosts::Placed::default(),
+            ghost_state: Vec::new(),
+            sees_ghost: Vec::new(),
         };
         solver.move_boundaries(0.0);
         solver.build_grids();
         fracture::fracture_build_bonds(&solver.params, &mut solver.st.solid, &solver.grids.solid);
+        if solver.params.capsule_ghosts {
+            let (s, l) = (&solver.st.solid, &solver.st.liquid);
+            solver.ghosts = crate::sim::ghosts::Ghosts::build(
+                &solver.params,
+                &s.x_ref,
+                &s.flags,
+                &s.normal0,
+                &s.m,
+                &l.x,
+                &l.m,
+                &solver.geoms,
+            );
+            // no ghost could be built (a 2-D scene): the capsule keeps its layers
+            solver.params.capsule_ghosts = !solver.ghosts.is_empty();
+            solver.build_grids();
+        }
         solver.last_good = solver.st.clone();
         Ok(solver)
     }
@@ -443,6 +473,25 @@ impl CpuSolver {
         }
         grid::grid_build(g, &self.st.solid.x, &mut self.grids.solid);
         grid::grid_build(g, &self.st.boundary.x, &mut self.grids.boundary);
+        if !self.ghosts.is_empty() {
+            self.ghost_placed = ghosts::ghost_place(&self.params, &self.ghosts, &self.st.solid);
+            grid::grid_build(g, &self.ghost_placed.x, &mut self.grids.ghost);
+        }
+    }
+
+    /// The four neighbour sets of the last grid build.
+    pub fn nbrs(&self) -> Nbrs<'_> {
+        Nbrs {
+            liquid: self.neighbours(Set::Liquid),
+            solid: self.neighbours(Set::Solid),
+            boundary: self.neighbours(Set::Boundary),
+            ghosts: (!self.ghosts.is_empty()).then(|| ghosts::GhostNbrs {
+                nbrs: self.neighbours(Set::Ghost),
+                gh: &self.ghosts,
+                placed: &self.ghost_placed,
+                state: &self.ghost_state,
+            }),
+        }
     }
 
     fn neighbours<'a>(&'a self, set: Set) -> Neighbours<'a> {
@@ -450,6 +499,7 @@ impl CpuSolver {
             Set::Liquid => &self.grids.liquid,
             Set::Solid => &self.grids.solid,
             Set::Boundary => &self.grids.boundary,
+            Set::Ghost => &self.grids.ghost,
         };
         Neighbours {
             grid: &self.params.grid,
@@ -465,14 +515,11 @@ impl CpuSolver {
         self.params.outlets_in_effect(self.st.suction_held)
     }
 
-    fn evaluate(&mut self, with_xsph: bool) {
+    /// One force evaluation (public for the differential tests).
+    pub fn evaluate(&mut self, with_xsph: bool) {
         let t0 = std::time::Instant::now();
         let p = &self.params;
-        let nb = Nbrs {
-            liquid: self.neighbours(Set::Liquid),
-            solid: self.neighbours(Set::Solid),
-            boundary: self.neighbours(Set::Boundary),
-        };
+        let nb = self.nbrs();
         let liquid_pass = (self.liquid_density_generation != Some(self.grid_generation)).then(|| {
             density::density_liquid(p, self.outlets(), &self.st.liquid, &self.st.solid, &self.st.boundary, &nb)
         });
@@ -483,13 +530,26 @@ impl CpuSolver {
         let sum_liquid = self.solid_n_l_generation != Some(self.grid_generation);
         let solid_pass = (p.solid_dynamic || p.wicking > 0.0)
             .then(|| density::density_solid(p, &self.st.solid, &self.st.liquid, &self.st.boundary, &nb, sum_liquid));
-        if let Some((rho_l, n_s_l, p_l)) = liquid_pass {
+        if let Some(d) = liquid_pass {
             let l = &mut self.st.liquid;
-            l.n_l = rho_l.iter().map(|r| r / p.rho0_l).collect();
-            l.rho = rho_l;
-            l.n_s = n_s_l;
-            l.p = p_l;
+            l.n_l = d.rho.iter().map(|r| r / p.rho0_l).collect();
+            l.rho = d.rho;
+            l.n_s = d.n_s;
+            l.p = d.p;
+            self.sees_ghost = d.sees_ghost;
             self.liquid_density_generation = Some(self.grid_generation);
+        }
+        // the ghosts' wall pressures and reactions on the liquid's pressures and velocities now
+        if !self.ghosts.is_empty() {
+            let (p, st) = (&self.params, &self.st);
+            self.ghost_state = ghosts::ghost_pressure(
+                p,
+                &self.ghosts,
+                &self.ghost_placed,
+                &st.liquid,
+                &st.solid,
+                &self.neighbours(Set::Liquid),
+            );
         }
         let t0 = self.timers.lap("density", t0);
         if let Some((drho_s, n_l_s, n_s_s, p_s)) = solid_pass {
@@ -508,11 +568,7 @@ impl CpuSolver {
         }
         let t0 = self.timers.lap("solid", t0);
         let p = &self.params;
-        let nb = Nbrs {
-            liquid: self.neighbours(Set::Liquid),
-            solid: self.neighbours(Set::Solid),
-            boundary: self.neighbours(Set::Boundary),
-        };
+        let nb = self.nbrs();
         let contacts = contacts_in_effect(&self.contacts, self.st.suction_held);
         let ctx = forces::ForceCtx {
             p,
@@ -521,6 +577,7 @@ impl CpuSolver {
             contacts: &contacts,
             gravity_liquid: !(self.st.damping > 0.0 && self.st.damping_solid_gravity_only),
             outlets: self.outlets(),
+            sees_ghost: &self.sees_ghost,
         };
         let forces::LiquidForces { a: a_l, xsph: vx_l, seal_scale } =
             forces::forces_liquid(&ctx, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb, with_xsph);
@@ -887,6 +944,7 @@ enum Set {
     Liquid,
     Solid,
     Boundary,
+    Ghost,
 }
 
 /// Neighbour queries over the three sets.
@@ -894,6 +952,8 @@ pub struct Nbrs<'a> {
     pub liquid: Neighbours<'a>,
     pub solid: Neighbours<'a>,
     pub boundary: Neighbours<'a>,
+    /// The capsule's ghost sites (`ghosts`), where there are any.
+    pub ghosts: Option<ghosts::GhostNbrs<'a>>,
 }
 
 #[cfg(test)]
@@ -1133,12 +1193,8 @@ mod tests {
         for _ in 0..30 {
             s.step().expect("step");
             assert_eq!(s.liquid_density_generation, Some(s.grid_generation), "step {}", s.st.steps);
-            let nb = Nbrs {
-                liquid: s.neighbours(Set::Liquid),
-                solid: s.neighbours(Set::Solid),
-                boundary: s.neighbours(Set::Boundary),
-            };
-            let (rho, n_s, p) =
+            let nb = s.nbrs();
+            let density::LiquidDensities { rho, n_s, p, .. } =
                 density::density_liquid(&s.params, &s.params.outlets, &s.st.liquid, &s.st.solid, &s.st.boundary, &nb);
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&rho), bits(&s.st.liquid.rho), "ρ at step {}", s.st.steps);

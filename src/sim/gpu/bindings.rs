@@ -74,11 +74,23 @@ pub enum Slot {
     /// Each solid particle's bond count in the generated configuration (`SolidSet::bond_count0`;
     /// static): whether a membrane particle still seals (`capsule_seals`).
     BondCount0,
+    /// The capsule's ghost sites (`sim::ghosts`, ghosts.wgsl), sorted by owner: static reference (offset
+    /// d and owner; masses), placed positions (the ghost grid's positions; w: the owner seals), the
+    /// placement's frame (F_o d and m_l; n̂_o and m_s), wall pressure and reaction, the ghost cell list,
+    /// each solid particle's first ghost (CSR), and per liquid particle whether it sees a blood ghost.
+    GhostRef,
+    GhostPos,
+    GhostFrame,
+    GhostState,
+    GhostOrder,
+    GhostCellStart,
+    GhostStart,
+    LiquidSees,
 }
 
 impl Slot {
     /// The slot with the highest binding number (sizes the slot table).
-    pub const LAST: Slot = Slot::BondCount0;
+    pub const LAST: Slot = Slot::LiquidSees;
 
     /// Binding number in group 0 (common.wgsl).
     pub const fn binding(self) -> u32 {
@@ -141,6 +153,14 @@ impl Slot {
             Slot::LiquidScratch => "liquid_scratch",
             Slot::SolidNormal0 => "solid_normal0",
             Slot::BondCount0 => "bond_count0",
+            Slot::GhostRef => "ghost_ref",
+            Slot::GhostPos => "ghost_pos",
+            Slot::GhostFrame => "ghost_frame",
+            Slot::GhostState => "ghost_state",
+            Slot::GhostOrder => "ghost_order",
+            Slot::GhostCellStart => "ghost_cell_start",
+            Slot::GhostStart => "ghost_start",
+            Slot::LiquidSees => "liquid_sees",
         }
     }
 
@@ -191,5 +211,7 @@ mod tests {
         assert_eq!(Slot::LiquidScratch.binding(), 50);
         assert_eq!(Slot::SolidNormal0.binding(), 51);
         assert_eq!(Slot::BondCount0.binding(), 52);
+        assert_eq!(Slot::GhostRef.binding(), 53);
+        assert_eq!(Slot::LiquidSees.binding(), 60);
     }
 }

@@ -17,7 +17,7 @@ const MIN_BYTES: u64 = 256;
 /// All simulation buffers by slot; the grid-generic slots resolve per set.
 pub struct SimBuffers {
     by_slot: Vec<Option<wgpu::Buffer>>,
-    grid_set: [wgpu::Buffer; 3],
+    grid_set: [wgpu::Buffer; 4],
     /// Backups of the evolving buffers (the last good state, restored on divergence).
     backups: Vec<(Slot, wgpu::Buffer)>,
 }
@@ -84,12 +84,12 @@ pub fn create_init(device: &wgpu::Device, slot: Slot, data: &[u8]) -> wgpu::Buff
 }
 
 impl SimBuffers {
-    /// `init[slot]` are the initial contents of each non-generic slot; `grid_sets` the three
+    /// `init[slot]` are the initial contents of each non-generic slot; `grid_sets` the four
     /// [`super::gpu_types::GridSet`] uniforms; `max_set` the largest set and `cells` the cell count.
     pub fn new(
         device: &wgpu::Device,
         init: Vec<(Slot, Vec<u8>)>,
-        grid_sets: [&[u8]; 3],
+        grid_sets: [&[u8]; 4],
         max_set: usize,
         cells: usize,
     ) -> SimBuffers {
@@ -105,7 +105,7 @@ impl SimBuffers {
         by_slot[Slot::GridBlockSums.binding() as usize] =
             Some(create_init(device, Slot::GridBlockSums, &vec![0u8; 4 * (blocks + 1)]));
         let gs = |k: usize| create_init(device, Slot::GridSet, grid_sets[k]);
-        let grid_set = [gs(0), gs(1), gs(2)];
+        let grid_set = [gs(0), gs(1), gs(2), gs(3)];
         let backups = STATE_SLOTS
             .iter()
             .filter_map(|s| by_slot[s.binding() as usize].as_ref().map(|b| (*s, b.size())))
@@ -139,6 +139,7 @@ impl SimBuffers {
                         GridOf::Liquid => 0,
                         GridOf::Solid => 1,
                         GridOf::Boundary => 2,
+                        GridOf::Ghost => 3,
                     }],
                 );
             }
@@ -146,16 +147,19 @@ impl SimBuffers {
                 GridOf::Liquid => Slot::LiquidPos,
                 GridOf::Solid => Slot::SolidPos,
                 GridOf::Boundary => Slot::BoundaryPos,
+                GridOf::Ghost => Slot::GhostPos,
             },
             Slot::GridOrder => match g {
                 GridOf::Liquid => Slot::LiquidOrder,
                 GridOf::Solid => Slot::SolidOrder,
                 GridOf::Boundary => Slot::BoundaryOrder,
+                GridOf::Ghost => Slot::GhostOrder,
             },
             Slot::GridCellStart => match g {
                 GridOf::Liquid => Slot::LiquidCellStart,
                 GridOf::Solid => Slot::SolidCellStart,
                 GridOf::Boundary => Slot::BoundaryCellStart,
+                GridOf::Ghost => Slot::GhostCellStart,
             },
             other => other,
         };

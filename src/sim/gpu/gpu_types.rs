@@ -129,8 +129,9 @@ pub struct SimParams {
     pub capsule_dx_solid: f32,
     /// `Params::capsule_seal`.
     pub capsule_seal: f32,
-    pub _pad_seal0: f32,
-    pub _pad_seal1: f32,
+    /// The capsule's ghost sites in use (0: its layers instead) and `forces::capsule_seal_offset`.
+    pub capsule_ghosts: u32,
+    pub capsule_seal_offset: f32,
     pub _pad_seal2: f32,
 }
 
@@ -142,6 +143,8 @@ pub struct Counts {
     pub boundary: u32,
     pub bond_capacity: u32,
     pub objects: u32,
+    /// The capsule's ghost sites (`sim::ghosts`).
+    pub ghosts: u32,
 }
 
 impl SimParams {
@@ -253,8 +256,8 @@ impl SimParams {
             capsule_solid_layers: p.capsule_solid_layers,
             capsule_dx_solid: p.capsule_dx_solid,
             capsule_seal: p.capsule_seal,
-            _pad_seal0: 0.0,
-            _pad_seal1: 0.0,
+            capsule_ghosts: if p.capsule_ghosts { c.ghosts } else { 0 },
+            capsule_seal_offset: crate::sim::cpu::forces::capsule_seal_offset(p),
             _pad_seal2: 0.0,
         }
     }

@@ -219,8 +219,11 @@ fn dispatch_class(spec: &PassSpec, grid: Option<GridOf>) -> usize {
         Dispatch::GridParticles => match grid {
             Some(GridOf::Solid) => 1,
             Some(GridOf::Boundary) => 2,
+            Some(GridOf::Ghost) => 6,
             _ => 0,
         },
+        // a fixed count, never written to the indirect arguments: dispatched directly
+        Dispatch::Ghost => 6,
         Dispatch::GridChunks => 3,
         Dispatch::GridChunksPlusOne => 4,
         Dispatch::One => 5,
@@ -299,6 +302,7 @@ impl GpuSolver {
             boundary: st.boundary.x.len() as u32,
             bond_capacity: st.solid.bond_capacity as u32,
             objects: st.objects.len() as u32,
+            ghosts: cpu.ghosts.len() as u32,
         };
         let cells = params.grid.cell_count() as u32;
         let shapes = object_shapes(&params, &st.objects);
@@ -316,7 +320,7 @@ impl GpuSolver {
                 | Slot::LiquidAcc
                 | Slot::LiquidAcc0
                 | Slot::LiquidDens => 16,
-                Slot::LiquidId => 4,
+                Slot::LiquidId | Slot::LiquidSees => 4,
                 _ => continue,
             };
             data.resize(elem * capacity as usize, 0);
@@ -354,7 +358,9 @@ impl GpuSolver {
         ] {
             solver_init.push((slot, vec![0u8; std::mem::size_of::<gpu_types::CellEntry>() * n]));
         }
-        for slot in [Slot::LiquidCellStart, Slot::SolidCellStart, Slot::BoundaryCellStart] {
+        Self::ghost_contents(cpu, counts.liquid.max(capacity), &mut solver_init);
+        solver_init.push((Slot::GhostOrder, vec![0u8; std::mem::size_of::<gpu_types::CellEntry>() * cpu.ghosts.len()]));
+        for slot in [Slot::LiquidCellStart, Slot::SolidCellStart, Slot::BoundaryCellStart, Slot::GhostCellStart] {
             solver_init.push((slot, vec![0u8; 4 * (cells as usize + 1)]));
         }
         // grid_reorder's scratch: one LiquidMove (4 vec4s) per liquid particle, when it runs
@@ -362,8 +368,9 @@ impl GpuSolver {
         solver_init.push((Slot::LiquidScratch, vec![0u8; scratch]));
         let gs = |n: u32| GridSet { n, cells, _pad0: 0, _pad1: 0 };
         let (g0, g1, g2) = (bytes(&[gs(counts.liquid)]), bytes(&[gs(counts.solid)]), bytes(&[gs(counts.boundary)]));
-        let max_set = capacity.max(counts.solid).max(counts.boundary) as usize;
-        let buffers = SimBuffers::new(&ctx.device, solver_init, [&g0, &g1, &g2], max_set, cells as usize);
+        let g3 = bytes(&[gs(counts.ghosts)]);
+        let max_set = capacity.max(counts.solid).max(counts.boundary).max(counts.ghosts) as usize;
+        let buffers = SimBuffers::new(&ctx.device, solver_init, [&g0, &g1, &g2, &g3], max_set, cells as usize);
         let pipelines = create_pipelines(&ctx.device, &buffers, params.reorder_liquid)?;
         let batch_staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("perfuse.batch_readback"),
@@ -460,6 +467,23 @@ impl GpuSolver {
         out.push((Slot::BoundaryPos0, bytes(&p0)));
     }
 
+    /// The capsule's ghost sites (`sim::ghosts`): reference, CSR by owner, and zeroed placement, state
+    /// and per-liquid flags (`ghost_place` fills them with the first grid build).
+    fn ghost_contents(cpu: &CpuSolver, liquid_capacity: u32, out: &mut Vec<(Slot, Vec<u8>)>) {
+        let gh = &cpu.ghosts;
+        let mut r: Vec<[f32; 4]> = Vec::with_capacity(2 * gh.len());
+        for g in 0..gh.len() {
+            r.push(v4(gh.d[g], f32::from_bits(gh.owner[g])));
+            r.push([gh.m_s[g], gh.m_l[g], 0.0, 0.0]);
+        }
+        out.push((Slot::GhostRef, bytes(&r)));
+        out.push((Slot::GhostStart, bytes(&gh.start)));
+        out.push((Slot::GhostPos, vec![0u8; 16 * gh.len()]));
+        out.push((Slot::GhostFrame, vec![0u8; 32 * gh.len()]));
+        out.push((Slot::GhostState, vec![0u8; 32 * gh.len()]));
+        out.push((Slot::LiquidSees, vec![0u8; 4 * liquid_capacity as usize]));
+    }
+
     /// Emitter tables from the CPU solver's `EmitState` (same slots, flows, accounts) and the ids.
     fn emit_contents(cpu: &CpuSolver, out: &mut Vec<(Slot, Vec<u8>)>) {
         let e = &cpu.st.emit;
@@ -550,12 +574,20 @@ impl GpuSolver {
             Some(GridOf::Liquid) => self.liquid_dispatch(),
             Some(GridOf::Solid) => self.counts.solid,
             Some(GridOf::Boundary) => self.counts.boundary,
+            Some(GridOf::Ghost) => self.counts.ghosts,
             None => 0,
         };
         let n = match spec.dispatch {
             Dispatch::Liquid => self.liquid_dispatch(),
             Dispatch::Solid => self.counts.solid,
             Dispatch::Boundary => self.counts.boundary,
+            Dispatch::Ghost => {
+                if self.params.capsule_ghosts {
+                    self.counts.ghosts
+                } else {
+                    0
+                }
+            }
             Dispatch::GridParticles => set_n,
             Dispatch::GridChunks => self.cells.div_ceil(passes::SCAN_CHUNK),
             Dispatch::GridChunksPlusOne => (self.cells + 1).div_ceil(passes::SCAN_CHUNK),
@@ -1583,7 +1615,7 @@ fn create_pipelines(
         // a pass over a grid-generic slot gets one bind group per set (grid_reorder binds the liquid's own)
         let generic = [Slot::GridSet, Slot::GridPos, Slot::GridOrder, Slot::GridCellStart, Slot::GridCellOf];
         let instances: &[Option<GridOf>] = if spec.slots.iter().any(|s| generic.contains(s)) {
-            &[Some(GridOf::Liquid), Some(GridOf::Solid), Some(GridOf::Boundary)]
+            &[Some(GridOf::Liquid), Some(GridOf::Solid), Some(GridOf::Boundary), Some(GridOf::Ghost)]
         } else {
             &[None]
         };

@@ -21,6 +21,8 @@ pub enum Dispatch {
     Liquid,
     Solid,
     Boundary,
+    /// The capsule's ghost sites (a fixed count: always dispatched directly).
+    Ghost,
     /// Particles of the grid instance's set.
     GridParticles,
     /// Blocks of [`SCAN_CHUNK`] cells of the grid (one invocation each: the two block passes of the scan).
@@ -92,6 +94,11 @@ pub const DENSITY_LIQUID: PassSpec = pass(
         NBR_ALL[3],
         NBR_ALL[4],
         NBR_ALL[5],
+        GhostOrder,
+        GhostCellStart,
+        GhostPos,
+        GhostFrame,
+        LiquidSees,
     ],
     Dispatch::Liquid,
 );
@@ -158,6 +165,13 @@ const FORCES_LIQUID_SLOTS: &[Slot] = &[
     NBR_ALL[3],
     NBR_ALL[4],
     NBR_ALL[5],
+    GhostOrder,
+    GhostCellStart,
+    GhostPos,
+    GhostFrame,
+    GhostState,
+    GhostRef,
+    LiquidSees,
 ];
 pub const FORCES_LIQUID: PassSpec = pass("forces_liquid", "forces", FORCES_LIQUID_SLOTS, Dispatch::Liquid);
 pub const FORCES_LIQUID_XSPH: PassSpec = pass("forces_liquid_xsph", "forces", FORCES_LIQUID_SLOTS, Dispatch::Liquid);
@@ -192,9 +206,40 @@ const FORCES_SOLID_SLOTS: &[Slot] = &[
     NBR_ALL[3],
     NBR_ALL[4],
     NBR_ALL[5],
+    GhostStart,
+    GhostState,
+    LiquidSees,
 ];
 pub const FORCES_SOLID: PassSpec = pass("forces_solid", "forces", FORCES_SOLID_SLOTS, Dispatch::Solid);
 pub const FORCES_SOLID_XSPH: PassSpec = pass("forces_solid_xsph", "forces", FORCES_SOLID_SLOTS, Dispatch::Solid);
+/// The capsule's ghost sites placed at x_o + F_o d with their owner's frame (ghosts.wgsl; twin:
+/// `ghosts::ghost_place`), before the ghost grid is built.
+pub const GHOST_PLACE: PassSpec = pass(
+    "ghost_place",
+    "ghosts",
+    &[Params, SolidPos, SolidDefGrad, SolidNormal0, BondCount, BondCount0, GhostRef, GhostPos, GhostFrame],
+    Dispatch::Ghost,
+);
+/// Each blood ghost's wall pressure, density and reaction, after `density_liquid` (twin:
+/// `ghosts::ghost_pressure`).
+pub const GHOST_PRESSURE: PassSpec = pass(
+    "ghost_pressure",
+    "ghosts",
+    &[
+        Params,
+        LiquidPos,
+        LiquidVel,
+        LiquidDens,
+        LiquidOrder,
+        LiquidCellStart,
+        SolidVel,
+        GhostRef,
+        GhostPos,
+        GhostFrame,
+        GhostState,
+    ],
+    Dispatch::Ghost,
+);
 pub const DT_CLEAR: PassSpec =
     PassSpec { entry: "dt_clear", family: "dt", workgroup_size: 1, slots: &[Params, Step], dispatch: Dispatch::One };
 pub const DT_REDUCE_LIQUID: PassSpec =
@@ -342,6 +387,8 @@ pub const ALL_PASSES: &[PassSpec] = &[
     DENSITY_LIQUID,
     DENSITY_SOLID,
     DENSITY_SOLID_KEPT,
+    GHOST_PLACE,
+    GHOST_PRESSURE,
     SOLID_STRESS,
     SOLID_FIT,
     SOLID_DEF_GRAD,
@@ -378,6 +425,8 @@ pub enum GridOf {
     Liquid,
     Solid,
     Boundary,
+    /// The capsule's ghost sites.
+    Ghost,
 }
 
 /// One element of an ordered pass list.
@@ -408,11 +457,14 @@ pub const PLACE_AND_BIN: &[Stage] = &[
     Stage::Pass(GRID_REORDER_APPLY),
     Stage::Grid(GridOf::Solid),
     Stage::Grid(GridOf::Boundary),
+    Stage::Pass(GHOST_PLACE),
+    Stage::Grid(GridOf::Ghost),
 ];
 
 /// One force evaluation (`CpuSolver::evaluate`), without XSPH.
 pub const EVALUATE: &[Stage] = &[
     Stage::Pass(DENSITY_LIQUID),
+    Stage::Pass(GHOST_PRESSURE),
     Stage::Pass(DENSITY_SOLID),
     Stage::Pass(SOLID_STRESS),
     Stage::Pass(SOLID_FIT),
@@ -424,6 +476,7 @@ pub const EVALUATE: &[Stage] = &[
 pub const STEP_FIRST: &[Stage] = &[
     Stage::Pass(DT_CLEAR),
     Stage::Pass(DENSITY_LIQUID),
+    Stage::Pass(GHOST_PRESSURE),
     Stage::Pass(DENSITY_SOLID),
     Stage::Pass(SOLID_STRESS),
     Stage::Pass(SOLID_FIT),
@@ -453,7 +506,10 @@ pub const STEP_SECOND: &[Stage] = &[
     Stage::Pass(GRID_REORDER_APPLY),
     Stage::Grid(GridOf::Solid),
     Stage::Grid(GridOf::Boundary),
+    Stage::Pass(GHOST_PLACE),
+    Stage::Grid(GridOf::Ghost),
     Stage::Pass(DENSITY_LIQUID),
+    Stage::Pass(GHOST_PRESSURE),
     Stage::Pass(DENSITY_SOLID),
     Stage::Pass(SOLID_STRESS),
     Stage::Pass(SOLID_FIT),

@@ -15,6 +15,7 @@ pub const SHADER_FILES: &[(&str, &str)] = &[
     ("fracture", include_str!("../../../shaders/fracture.wgsl")),
     ("batch", include_str!("../../../shaders/batch.wgsl")),
     ("emit", include_str!("../../../shaders/emit.wgsl")),
+    ("ghosts", include_str!("../../../shaders/ghosts.wgsl")),
     // The renderer's passes (src/render/): same registry, same validation test.
     ("render_common", include_str!("../../../shaders/render_common.wgsl")),
     ("render_particles", include_str!("../../../shaders/render_particles.wgsl")),
