@@ -794,8 +794,9 @@ fn capsule_seal_walks(pr: f32) -> bool {
     return params.capsule_ghosts == 0u && pr <= 0.0;
 }
 
-// Whether liquid at x_i − x_g = xig counts ghost g (its owner sealing): x_i beneath the owner's capsule
-// by its normal or by the ghost's offset. Twin of ghosts.rs ghost_counts.
+// Whether liquid at x_i − x_g = xig counts ghost g (its owner sealing): x_i beneath the organ's surface
+// at the owner (capsule_seal_offset beyond its particle) by its normal or along the ghost's offset.
+// Twin of ghosts.rs ghost_counts.
 fn ghost_counts(g: u32, xig: vec3<f32>) -> bool {
     if (ghost_pos[g].w == 0.0) {
         return false;
@@ -803,7 +804,8 @@ fn ghost_counts(g: u32, xig: vec3<f32>) -> bool {
     let fd = ghost_frame[2u * g].xyz;
     let n = ghost_frame[2u * g + 1u].xyz;
     let xio = xig + fd;
-    return (any(n != vec3<f32>(0.0)) && dot3(xio, n) <= 0.0) || dot3(xio, fd) <= 0.0;
+    let s = params.capsule_seal_offset;
+    return (any(n != vec3<f32>(0.0)) && dot3(xio, n) <= s) || dot3(xio, fd) <= s * sqrt(dot3(fd, fd));
 }
 
 // Twin of ghosts.rs ghost_on_liquid: liquid_from_boundary with the ghost's wall pressure p_g and density

@@ -128,7 +128,7 @@ fn indentation_bulges_leaves_a_dent_and_does_not_leak() {
     let n = 10;
     let dx_s = L_C / n as f64;
     let r_ind = 0.2 * L_C;
-    let sc = perfuse::analysis::capsule::indented_specimen(n).unwrap_or_else(|e| panic!("{e}"));
+    let sc = perfuse::analysis::capsule::indented_specimen(n, &[]).unwrap_or_else(|e| panic!("{e}"));
     let period = perfuse::analysis::capsule::INDENTATION_PERIOD;
     let mut sim = Simulation::new(&sc, BackendKind::Cpu).expect("sim");
     sim.step().expect("first step");

@@ -276,8 +276,8 @@ fn a_hanging_perfused_cube_keeps_its_blood_in_its_capsule() {
 /// blood at the capsule the generated fractions at faces, edges and corners alike, on both back-ends:
 /// the CI specimen (12³ tissue / 11³ blood lattices, which do not coincide) after one step, its blood
 /// grouped by how many of the cube's faces lie within 5 mm. With ghosts every group's mean nˢ is the
-/// tissue's 0.6 and nˡ the blood's 0.4 within 0.015 (2026-12-07: nˢ 0.597–0.603, nˡ 0.391 at the edges,
-/// 0.400 elsewhere);
+/// tissue's 0.6 and nˡ the blood's 0.4 within 0.01 (2026-12-07: nˢ 0.597–0.603, nˡ 0.400 in every
+/// group; 0.391 at the edges while the ghosts were counted only beneath the particles' plane);
 /// with the capsule's layers the edges and corners see a third to a half less tissue (nˢ 0.414 at the
 /// edges, 0.287 at the corners) and the faces more blood (nˡ 0.482).
 #[test]
@@ -307,7 +307,7 @@ fn ghost_sites_give_the_blood_the_generated_fractions_everywhere() {
                 println!("ghosts {ghosts}, {backend:?}: {} {n} liquid: nˢ {ns:.3}, nˡ {nl:.3}", names[k]);
                 assert!(*n > 0.0, "no liquid at the {}", names[k]);
                 if ghosts {
-                    assert!((ns - 0.6).abs() < 0.015 && (nl - 0.4).abs() < 0.015, "{}: nˢ {ns}, nˡ {nl}", names[k]);
+                    assert!((ns - 0.6).abs() < 0.01 && (nl - 0.4).abs() < 0.01, "{}: nˢ {ns}, nˡ {nl}", names[k]);
                 } else {
                     layered[k] = ns;
                 }

@@ -76,11 +76,16 @@ pub fn hanging_cube_ron(n: usize, dx: f64) -> String {
 
 /// The hanging cube of [`hanging_cube_ron`] as a scenario whose mesh lies in `dir` (written there).
 pub fn hanging_cube(dir: &Path, n: usize, dx: f64) -> Result<Scenario, ValidationError> {
+    hanging_cube_with(dir, n, dx, &[])
+}
+
+/// [`hanging_cube`] with `--set` overrides (`perfuse validate --case capsule --set …`).
+pub fn hanging_cube_with(dir: &Path, n: usize, dx: f64, overrides: &[String]) -> Result<Scenario, ValidationError> {
     let io = |e: std::io::Error| ValidationError::Io { path: dir.display().to_string(), message: e.to_string() };
     std::fs::create_dir_all(dir).map_err(io)?;
     write_cube_mesh(dir, 0.05 * dx, (n as f64 + 0.25) * dx).map_err(io)?;
     let origin = dir.join("hanging_cube.ron");
-    Ok(Scenario::from_str_named(&hanging_cube_ron(n, dx), &origin.to_string_lossy())?)
+    Ok(Scenario::from_str_with_overrides(&hanging_cube_ron(n, dx), &origin.to_string_lossy(), overrides)?)
 }
 
 /// `indentation.ron` re-gridded to n³ solid / (n − 1)³ liquid sites (one h = 1.3Δx_s, no relaxation)
@@ -122,9 +127,11 @@ pub fn specimen_overrides(n: usize) -> Vec<String> {
     ]
 }
 
-/// The indented specimen of [`indentation_overrides`].
-pub fn indented_specimen(n: usize) -> Result<Scenario, ValidationError> {
-    Ok(Scenario::from_str_with_overrides(INDENTATION, "assets/scenarios/indentation.ron", &indentation_overrides(n))?)
+/// The indented specimen of [`indentation_overrides`], then `extra` overrides.
+pub fn indented_specimen(n: usize, extra: &[String]) -> Result<Scenario, ValidationError> {
+    let mut ov = indentation_overrides(n);
+    ov.extend_from_slice(extra);
+    Ok(Scenario::from_str_with_overrides(INDENTATION, "assets/scenarios/indentation.ron", &ov)?)
 }
 
 /// How far beyond a capsule particle's plane, in Δx, liquid counts as beyond the capsule: 0.1Δx beyond
@@ -356,23 +363,25 @@ pub fn rows(o: &CapsuleOutcome, wall: f64) -> Vec<CaseResult> {
     rows
 }
 
-/// Issue 6 §1 on both runs (quick: 8³ hanging, 10³ indented; standard: 16³ and 20³).
+/// Issue 6 §1 on both runs (quick: 8³ hanging, 10³ indented; standard: 16³ and 20³); `overrides`
+/// (`--set`) apply to both scenes after the case's own.
 pub fn validate(
     quick: bool,
     backend: BackendKind,
     out: &Path,
     _progress: bool,
+    overrides: &[String],
 ) -> Result<Vec<CaseResult>, ValidationError> {
     let (n_hang, n_ind) = if quick { (8, 10) } else { (16, 20) };
     let mut all = Vec::new();
     let started = Instant::now();
     let dx_hang = HANGING_DX * 8.0 / n_hang as f64;
-    let sc = hanging_cube(&out.join("capsule_hanging"), n_hang, dx_hang)?;
+    let sc = hanging_cube_with(&out.join("capsule_hanging"), n_hang, dx_hang, overrides)?;
     let mut o = run(&sc, backend, CapsuleRun::Hanging, dx_hang as f32)?;
     o.resolution = format!("{n_hang}^3 solid + capsule, {}^3 liquid, dx {:.2} mm", n_hang - 1, dx_hang * 1e3);
     all.extend(rows(&o, started.elapsed().as_secs_f64()));
     let started = Instant::now();
-    let sc = indented_specimen(n_ind)?;
+    let sc = indented_specimen(n_ind, overrides)?;
     let mut o = run(&sc, backend, CapsuleRun::Indented, (L_C / n_ind as f64) as f32)?;
     o.resolution = format!("{n_ind}^3 solid + capsule, {}^3 liquid", n_ind - 1);
     all.extend(rows(&o, started.elapsed().as_secs_f64()));

@@ -43,8 +43,8 @@ pub const EXTRA_CASES: [&str; 9] = [
 ];
 
 /// The cases `--set` may edit: each runs one scenario file (re-gridded by its preset).
-pub const SET_CASES: [&str; 6] =
-    ["liver_scalpel", "liver_scalpel_L1", "liver_scalpel_L2", "projectile", "syringe", "liver_rest"];
+pub const SET_CASES: [&str; 7] =
+    ["liver_scalpel", "liver_scalpel_L1", "liver_scalpel_L2", "projectile", "syringe", "liver_rest", "capsule"];
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -192,7 +192,7 @@ pub fn run_validation(
             }
             "syringe" => super::syringe::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, ctx.relax)?,
             "dmd" => super::dmd_cases::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
-            "capsule" => super::capsule::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress)?,
+            "capsule" => super::capsule::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides)?,
             "liver_rest" => {
                 super::liver_rest::validate(ctx.quick, ctx.backend, ctx.out, ctx.progress, overrides, ctx.relax)?
             }

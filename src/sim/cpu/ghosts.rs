@@ -4,16 +4,17 @@
 //!   (`capsule_normal`), the offset F_o d, and whether the owner still seals (`capsule_seals`; with the
 //!   seal off, always). The ghosts are binned on these positions like the three particle sets.
 //! * [`GhostNbrs::for_each`]: the ghosts a liquid particle at x_i counts — its owner seals, and x_i lies
-//!   on the owner's inner side by the capsule's normal or by the ghost's own offset,
-//!   (x_i − x_o)·n̂_o ≤ 0 ∨ (x_i − x_o)·F_o d ≤ 0 (near an edge the detection's normal is tilted and
-//!   fails the first for the edge's blood; the blood lattice's misfit to the tissue's fails the second
-//!   at faces). `density_liquid` adds tissue ghosts to nˢ (D-8) and blood ghosts to ρ (2.46).
+//!   beneath the organ's surface s = Δx_s/2 beyond the owner by the capsule's normal or along the
+//!   ghost's own offset, (x_i − x_o)·n̂_o ≤ s ∨ (x_i − x_o)·F_o d ≤ s|F_o d| (near an edge the
+//!   detection's normal is tilted and fails the first for the edge's blood; the blood lattice's misfit
+//!   to the tissue's fails the second at faces). `density_liquid` adds tissue ghosts to nˢ (D-8) and
+//!   blood ghosts to ρ (2.46).
 //! * `ghost_pressure` (after `density_liquid`): each blood ghost's wall pressure and density, the
 //!   Shepard means Σ p_j W / Σ W, Σ ρ_j W / Σ W over the liquid that counts it (Adami, Hu & Adams 2012,
 //!   without their body-force term; p clamped at 0), and the reaction of its boundary force (§4.1) on
 //!   that liquid, which its owner gathers in `forces_solid`.
 
-use super::forces::{capsule_normal, capsule_seals, liquid_from_boundary};
+use super::forces::{capsule_normal, capsule_seal_offset, capsule_seals, liquid_from_boundary};
 use super::grid::Neighbours;
 use super::{LiquidSet, ObjectContact, SolidSet};
 use crate::sim::ghosts::Ghosts;
@@ -64,6 +65,7 @@ pub struct GhostState {
 
 /// The ghosts as a neighbour set.
 pub struct GhostNbrs<'a> {
+    pub p: &'a Params,
     pub nbrs: Neighbours<'a>,
     pub gh: &'a Ghosts,
     pub placed: &'a Placed,
@@ -71,23 +73,29 @@ pub struct GhostNbrs<'a> {
     pub state: &'a [GhostState],
 }
 
-/// Whether liquid at x_i − x_g = `xig` counts ghost g (its owner sealing): x_i beneath the owner's
-/// capsule by its normal or by the ghost's offset. Twin of `ghost_counts` in ghosts.wgsl.
+/// Whether liquid at x_i − x_g = `xig` counts ghost g (its owner sealing): x_i beneath the organ's
+/// surface at the owner — by the owner's normal or along the ghost's offset — which lies `surface`
+/// beyond the owner's particle (`forces::capsule_seal_offset`: Δx_s/2, where the seal holds the blood).
+/// Blood in the half spacing between the capsule's particles and the surface still counts the ghosts
+/// beyond; counted only beneath the particles' plane, it lost every ghost at once as it crossed the
+/// plane (nˢ, ρ and its pressure dropped, the capsule particle became its wall) and jolted the capsule.
+/// Twin of `ghost_counts` in common.wgsl.
 #[inline]
-pub fn ghost_counts(pl: &Placed, g: usize, xig: Vec3) -> bool {
+pub fn ghost_counts(pl: &Placed, g: usize, xig: Vec3, surface: f32) -> bool {
     if !pl.seals[g] {
         return false;
     }
-    let xio = xig + pl.fd[g];
-    (pl.n[g] != Vec3::ZERO && xio.dot(pl.n[g]) <= 0.0) || xio.dot(pl.fd[g]) <= 0.0
+    let (xio, fd) = (xig + pl.fd[g], pl.fd[g]);
+    (pl.n[g] != Vec3::ZERO && xio.dot(pl.n[g]) <= surface) || xio.dot(fd) <= surface * fd.length()
 }
 
 impl GhostNbrs<'_> {
     /// Calls f(g, x_i − x_g, r) for every ghost within `radius` of x_i that liquid there counts.
     #[inline]
     pub fn for_each(&self, xi: Vec3, radius: f32, mut f: impl FnMut(usize, Vec3, f32)) {
+        let surface = capsule_seal_offset(self.p);
         self.nbrs.for_each(xi, radius, |g, xig, r| {
-            if ghost_counts(self.placed, g, xig) {
+            if ghost_counts(self.placed, g, xig, surface) {
                 f(g, xig, r)
             }
         });
@@ -136,9 +144,10 @@ pub fn ghost_pressure(
                 return GhostState::default();
             }
             let xg = pl.x[g];
+            let surface = capsule_seal_offset(p);
             let (mut sw, mut sp, mut sr) = (0.0f32, 0.0f32, 0.0f32);
             liquid.for_each(xg, kl.r, |j, xgj, r| {
-                if ghost_counts(pl, g, -xgj) {
+                if ghost_counts(pl, g, -xgj, surface) {
                     let w = kl.w_poly6(r);
                     sw += w;
                     sp += l.p[j] * w;
@@ -152,7 +161,7 @@ pub fn ghost_pressure(
             let v_o = s.v[gh.owner[g] as usize];
             let mut reaction = Vec3::ZERO;
             liquid.for_each(xg, kl.r, |j, xgj, r| {
-                if ghost_counts(pl, g, -xgj) {
+                if ghost_counts(pl, g, -xgj, surface) {
                     let a = ghost_on_liquid(
                         p,
                         l.rho[j],

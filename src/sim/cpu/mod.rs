@@ -486,6 +486,7 @@ impl CpuSolver {
             solid: self.neighbours(Set::Solid),
             boundary: self.neighbours(Set::Boundary),
             ghosts: (!self.ghosts.is_empty()).then(|| ghosts::GhostNbrs {
+                p: &self.params,
                 nbrs: self.neighbours(Set::Ghost),
                 gh: &self.ghosts,
                 placed: &self.ghost_placed,
