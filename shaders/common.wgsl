@@ -788,10 +788,10 @@ fn capsule_seal_share(m_liquid: f32, m_membrane: f32) -> f32 {
 }
 
 // Twin of forces.rs capsule_seal_walks: the seal walks liquid at pressure pr back to the capsule's plane
-// only where the mirror pressure does not hold it (p ≤ 0).
-// With the capsule's ghost sites it never walks.
+// only where the mirror pressure does not hold it (p ≤ 0); with the capsule's ghost sites, back to the
+// organ's surface (capsule_seal_offset).
 fn capsule_seal_walks(pr: f32) -> bool {
-    return params.capsule_ghosts == 0u && pr <= 0.0;
+    return pr <= 0.0;
 }
 
 // Whether liquid at x_i − x_g = xig counts ghost g (its owner sealing): x_i beneath the organ's surface
