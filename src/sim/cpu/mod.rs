@@ -162,7 +162,7 @@ pub fn contacts_in_effect(contacts: &[ObjectContact], suction_held: bool) -> std
     std::borrow::Cow::Owned(contacts.iter().map(mirror).collect())
 }
 
-/// Cell lists of the three sets.
+/// Cell lists of the three particle sets and of the capsule's ghost sites.
 #[derive(Clone, Debug, Default)]
 pub struct Grids {
     pub liquid: CellList,
@@ -463,7 +463,8 @@ impl CpuSolver {
 
     /// The three cell lists on the current positions, the liquid renumbered in its cell order when
     /// `numerics.reorder_liquid` (`grid::grid_reorder`; the GPU's PLACE_AND_BIN and STEP_SECOND
-    /// likewise: its liquid walks read the particle arrays as the list).
+    /// likewise: its liquid walks read the particle arrays as the list), then the capsule's ghost sites
+    /// placed on the solid's x and F (`ghosts::ghost_place`) and their cell list.
     pub fn build_grids(&mut self) {
         self.grid_generation += 1;
         let g = &self.params.grid;
@@ -948,7 +949,7 @@ enum Set {
     Ghost,
 }
 
-/// Neighbour queries over the three sets.
+/// Neighbour queries over the three particle sets and the capsule's ghost sites.
 pub struct Nbrs<'a> {
     pub liquid: Neighbours<'a>,
     pub solid: Neighbours<'a>,

@@ -444,7 +444,8 @@ pub enum Stage {
 pub const GRID_BUILD: &[PassSpec] =
     &[GRID_CLEAR, GRID_COUNT, GRID_SCAN_BLOCKS, GRID_SCAN_TOP, GRID_SCAN_APPLY, GRID_SCATTER, GRID_SORT_CELLS];
 
-/// Boundaries to the current pose and the three cell lists (`move_boundaries` + `build_grids`), the
+/// Boundaries to the current pose and the three cell lists, then the capsule's ghost sites placed and
+/// binned (`move_boundaries` + `build_grids`), the
 /// liquid renumbered in its cell order when `numerics.reorder_liquid` (as every liquid grid build is:
 /// the liquid walks rely on it, common.wgsl `LIQUID_IN_CELL_ORDER`). The state the host hands the device
 /// is already in that order (the CPU twin's, or a batch's), so here the renumbering finds nothing to
