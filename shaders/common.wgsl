@@ -808,16 +808,30 @@ fn ghost_counts(g: u32, xig: vec3<f32>) -> bool {
     return (any(n != vec3<f32>(0.0)) && dot3(xio, n) <= s) || dot3(xio, fd) <= s * sqrt(dot3(fd, fd));
 }
 
+// Acceleration of a liquid particle from one boundary-like neighbour (forces.rs
+// `liquid_from_boundary`); density < 0 is the mirror mode with hydrostatic p_b.
+fn liquid_from_boundary(rho: f32, pr: f32, n_l: f32, vi: vec3<f32>, m_b: f32, vb: vec3<f32>, xib: vec3<f32>, r: f32,
+                        density: f32, pressure: f32, no_slip: f32, g: vec3<f32>, outside: f32) -> vec3<f32> {
+    let k = params.k_liquid;
+    let grad = xib * grad_spiky_factor(k, r);
+    var bracket: f32;
+    if (density < 0.0) {
+        let pb = max(pr + rho * dot3(g, -xib), 0.0);
+        bracket = (max(pr, 0.0) + pb - 2.0 * outside) / (rho * rho);
+    } else {
+        bracket = pr / (rho * rho) + pressure / (density * density);
+    }
+    var a = grad * (-n_l * m_b * bracket * params.kappa_s);
+    a += (vb - vi) * (no_slip * params.kappa_v * params.eta / rho * (m_b / rho) * lap_viscosity(k, r));
+    return a;
+}
+
 // Twin of ghosts.rs ghost_on_liquid: liquid_from_boundary with the ghost's wall pressure p_g and density
 // ρ_g, `outside` taken off both pressures.
 fn ghost_on_liquid(rho: f32, pr: f32, n_l: f32, vi: vec3<f32>, m_g: f32, v_o: vec3<f32>, xig: vec3<f32>, r: f32,
                    p_g: f32, rho_g: f32, outside: f32) -> vec3<f32> {
-    let k = params.k_liquid;
-    let grad = xig * grad_spiky_factor(k, r);
-    let bracket = (pr - outside) / (rho * rho) + (p_g - outside) / (rho_g * rho_g);
-    var a = grad * (-n_l * m_g * bracket * params.kappa_s);
-    a += (v_o - vi) * (params.kappa_v * params.eta / rho * (m_g / rho) * lap_viscosity(k, r));
-    return a;
+    return liquid_from_boundary(rho, pr - outside, n_l, vi, m_g, v_o, xig, r, rho_g, p_g - outside, 1.0,
+                                vec3<f32>(0.0), 0.0);
 }
 
 // Twin of forces.rs SealPair: one intact membrane particle's part in the seal on one liquid particle.

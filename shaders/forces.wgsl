@@ -79,24 +79,6 @@ fn no_slip_factor(obj: u32, xi: vec3<f32>, xb: vec3<f32>) -> f32 {
     return 1.0 + min(db / di, NO_SLIP_BETA_MAX);
 }
 
-// Acceleration of a liquid particle from one boundary-like neighbour (forces.rs
-// `liquid_from_boundary`); density < 0 is the mirror mode with hydrostatic p_b.
-fn liquid_from_boundary(rho: f32, pr: f32, n_l: f32, vi: vec3<f32>, m_b: f32, vb: vec3<f32>, xib: vec3<f32>, r: f32,
-                        density: f32, pressure: f32, no_slip: f32, g: vec3<f32>, outside: f32) -> vec3<f32> {
-    let k = params.k_liquid;
-    let grad = xib * grad_spiky_factor(k, r);
-    var bracket: f32;
-    if (density < 0.0) {
-        let pb = max(pr + rho * dot3(g, -xib), 0.0);
-        bracket = (max(pr, 0.0) + pb - 2.0 * outside) / (rho * rho);
-    } else {
-        bracket = pr / (rho * rho) + pressure / (density * density);
-    }
-    var a = grad * (-n_l * m_b * bracket * params.kappa_s);
-    a += (vb - vi) * (no_slip * params.kappa_v * params.eta / rho * (m_b / rho) * lap_viscosity(k, r));
-    return a;
-}
-
 // One solid particle's wall contacts for Coulomb friction (forces.rs `WallContact`): the load
 // L = Σμa_p of the pairs' contact-pressure accelerations, Σμ|a_p| and Σμ|a_p|v_b (README: deviations
 // from SPEC).

@@ -581,13 +581,8 @@ impl GpuSolver {
             Dispatch::Liquid => self.liquid_dispatch(),
             Dispatch::Solid => self.counts.solid,
             Dispatch::Boundary => self.counts.boundary,
-            Dispatch::Ghost => {
-                if self.params.capsule_ghosts {
-                    self.counts.ghosts
-                } else {
-                    0
-                }
-            }
+            // none unless `membrane.ghosts` built some (`CpuSolver::new`)
+            Dispatch::Ghost => self.counts.ghosts,
             Dispatch::GridParticles => set_n,
             Dispatch::GridChunks => self.cells.div_ceil(passes::SCAN_CHUNK),
             Dispatch::GridChunksPlusOne => (self.cells + 1).div_ceil(passes::SCAN_CHUNK),
