@@ -110,19 +110,18 @@ struct SimParams {
     // ambient pressure p_a added to (2.53) (numerics.ambient_pressure; 0: none)
     ambient_pressure: f32,
     bond_reach: f32,
-    // the capsule's layers for the liquid beneath it (forces.rs capsule_inner): liquid layers at Δx_l,
-    // tissue layers at Δx_s; 0: no membrane
-    capsule_liquid_layers: u32,
+    // the lattice spacings Δx_l and Δx_s the capsule's ghost sites and seal are measured in
     capsule_dx_liquid: f32,
-    capsule_solid_layers: u32,
     capsule_dx_solid: f32,
     // the capsule's seal (forces.rs capsule_seal_pair): 1 on, 0 off
     capsule_seal: f32,
-    // the capsule's ghost sites (sim::ghosts, ghosts.wgsl): their count (0: the capsule's layers instead), and
+    // the capsule's ghost sites (sim::ghosts, ghosts.wgsl): their count (0: none, the thesis's capsule), and
     // the seal's plane beyond the capsule particle (forces.rs capsule_seal_offset)
     capsule_ghosts: u32,
     capsule_seal_offset: f32,
     _pad_seal2: f32,
+    _pad_seal3: f32,
+    _pad_seal4: f32,
 }
 
 // OutletRegion::find: the index k of the first outlet buffer in effect that holds x (boundaries included,
@@ -755,19 +754,10 @@ fn capsule_normal(fm: Mat3Gpu, n0: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(0.0);
 }
 
-// Twins of forces.rs capsule_inner and of the layers of capsule_liquid_layers (k from 0) and
-// capsule_solid_layers (k from 1):
-// whether liquid i (x_ij = x_i − x_j) lies beneath membrane particle j's capsule, and x_i − x_g of a layer.
+// Twin of forces.rs capsule_inner: whether liquid i (x_ij = x_i − x_j) lies beneath membrane particle j's
+// capsule, where the capsule's ghost sites are the wall.
 fn capsule_inner(n: vec3<f32>, xij: vec3<f32>) -> bool {
-    return params.capsule_liquid_layers != 0u && any(n != vec3<f32>(0.0)) && dot3(xij, n) <= 0.0;
-}
-
-fn capsule_liquid_layer(n: vec3<f32>, xij: vec3<f32>, k: u32) -> vec3<f32> {
-    return xij - n * ((f32(k) + 0.5) * params.capsule_dx_liquid);
-}
-
-fn capsule_solid_layer(n: vec3<f32>, xij: vec3<f32>, k: u32) -> vec3<f32> {
-    return xij - n * (f32(k) * params.capsule_dx_solid);
+    return params.capsule_ghosts != 0u && any(n != vec3<f32>(0.0)) && dot3(xij, n) <= 0.0;
 }
 
 // Steps over which the capsule's seal walks liquid beyond the capsule's plane back to it, by its advection

@@ -128,26 +128,8 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let r = sqrt(r2);
                 if ((solid_flags[j] & SOLID_MEMBRANE) != 0u) {
                     let n = capsule_normal(solid_f[j], solid_normal0[j].xyz);
-                    if (capsule_inner(n, xij)) {
-                        // beneath the capsule: its layers continue the liquid (ρ) and the tissue (nˢ)
-                        // (forces.rs capsule_inner); with ghosts, the ghosts do
-                        let layers = select(params.capsule_liquid_layers, 0u, params.capsule_ghosts != 0u);
-                        let solid_layers = select(params.capsule_solid_layers, 0u, params.capsule_ghosts != 0u);
-                        for (var layer = 0u; layer < layers; layer++) {
-                            let xig = capsule_liquid_layer(n, xij, layer);
-                            let rg = sqrt(dot3(xig, xig));
-                            if (rg < kl.r) {
-                                rho += solid_vel[j].w * w_poly6(kl, rg);
-                            }
-                        }
-                        for (var layer = 1u; layer <= solid_layers; layer++) {
-                            let xig = capsule_solid_layer(n, xij, layer);
-                            let rg = sqrt(dot3(xig, xig));
-                            if (rg < kx.r) {
-                                sum_s += solid_pos[j].w * w_poly6(kx, rg);
-                            }
-                        }
-                    } else if (r < kl.r && !sees) {
+                    // a boundary particle (2.46) unless the ghosts continue the liquid here (forces.rs capsule_inner)
+                    if (!capsule_inner(n, xij) && r < kl.r && !sees) {
                         rho += solid_vel[j].w * w_poly6(kl, r);
                     }
                 }

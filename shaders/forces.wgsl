@@ -370,17 +370,8 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
                         seal_sum += sp.stop * capsule_seal_share(liquid_pos[i].w, solid_pos[j].w);
                         seal_back += sp.back;
                     }
-                    if (capsule_inner(n, xij)) {
-                        // beneath the capsule: its liquid layers (forces.rs capsule_inner), or its ghosts
-                        let layers = select(params.capsule_liquid_layers, 0u, params.capsule_ghosts != 0u);
-                        for (var layer = 0u; layer < layers; layer++) {
-                            let xig = capsule_liquid_layer(n, xij, layer);
-                            let rg = sqrt(dot3(xig, xig));
-                            if (rg < kl.r) {
-                                a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xig, rg, -1.0, 0.0, 1.0, g, 0.0);
-                            }
-                        }
-                    } else if (!sees_ghost) {
+                    // beneath the capsule its ghosts are the wall (forces.rs capsule_inner)
+                    if (!capsule_inner(n, xij) && !sees_ghost) {
                         a += liquid_from_boundary(rho, pr, n_l, vi, vj.w, vj.xyz, xij, r, -1.0, 0.0, 1.0, g, 0.0);
                     }
                 }
@@ -603,20 +594,8 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                     }
                     if (membrane && r2 < r2l) {
                         let vj = liquid_vel[j].xyz;
-                        if (capsule_inner(normal_i, -xij)) {
-                            // the reaction of its liquid layers on liquid j beneath it (forces.rs capsule_inner);
-                            // with ghosts, theirs (below)
-                            let layers = select(params.capsule_liquid_layers, 0u, params.capsule_ghosts != 0u);
-                            for (var layer = 0u; layer < layers; layer++) {
-                                let xjg = capsule_liquid_layer(normal_i, -xij, layer);
-                                let rg = sqrt(dot3(xjg, xjg));
-                                if (rg < kl.r) {
-                                    let on_g = liquid_from_boundary(dj.x, dj.w, dj.y, vj, vi4.w, vi, xjg, rg, -1.0, 0.0, 1.0,
-                                                                    g_l, params.ambient_pressure);
-                                    fm -= on_g * mj;
-                                }
-                            }
-                        } else if (liquid_sees[j] == 0u) {
+                        // on liquid j beneath the capsule its ghosts' reaction acts instead (ghosts.wgsl)
+                        if (!capsule_inner(normal_i, -xij) && liquid_sees[j] == 0u) {
                             let on_j = liquid_from_boundary(dj.x, dj.w, dj.y, vj, vi4.w, vi, -xij, r, -1.0, 0.0, 1.0, g_l,
                                                         params.ambient_pressure);
                             fm -= on_j * mj;

@@ -10,7 +10,7 @@ use common::gpu::gpu_test;
 use common::scenes::{perfused_block, perfused_cube_under_gravity, sliding_block, wicking_block};
 use glam::{Mat3, Vec3};
 use perfuse::scenario::generate;
-use perfuse::sim::cpu::{CpuSolver, Nbrs, ObjectContact, density, forces, solid};
+use perfuse::sim::cpu::{CpuSolver, Nbrs, ObjectContact, density, forces, ghosts, solid};
 use perfuse::sim::gpu::bindings::Slot;
 use perfuse::sim::gpu::gpu_types::CellEntry;
 use perfuse::sim::gpu::passes::{self, Stage};
@@ -79,9 +79,10 @@ fn nbrs(cpu: &CpuSolver) -> Nbrs<'_> {
     cpu.nbrs()
 }
 
-/// The CPU evaluation of `CpuSolver::evaluate` (private there), pass by pass, on `cpu`'s state.
+/// The CPU evaluation of `CpuSolver::evaluate`, pass by pass, on `cpu`'s state (its densities always
+/// summed afresh, and evaluation 1's forces checked against evaluation 0's).
 fn cpu_evaluate(cpu: &mut CpuSolver) {
-    let (density::LiquidDensities { rho: rho_l, n_s: n_s_l, p: p_l, .. }, (drho_s, n_l_s, n_s_s, p_s)) = {
+    let (density::LiquidDensities { rho: rho_l, n_s: n_s_l, p: p_l, sees_ghost }, (drho_s, n_l_s, n_s_s, p_s)) = {
         let nb = nbrs(cpu);
         let p = &cpu.params;
         (
@@ -94,6 +95,14 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
     l.rho = rho_l;
     l.n_s = n_s_l;
     l.p = p_l;
+    cpu.sees_ghost = sees_ghost;
+    // the capsule's ghost sites' wall pressures and reactions (`ghosts::ghost_pressure`)
+    if !cpu.ghosts.is_empty() {
+        let nb = nbrs(cpu);
+        let (p, st) = (&cpu.params, &cpu.st);
+        let g = ghosts::ghost_pressure(p, &cpu.ghosts, &cpu.ghost_placed, &st.liquid, &st.solid, &nb.liquid);
+        cpu.ghost_state = g;
+    }
     let s = &mut cpu.st.solid;
     s.drho = drho_s;
     s.n_l = n_l_s;
@@ -797,17 +806,21 @@ fn tethered_block_matches_cpu() {
     });
 }
 
-/// A capsule ten times stiffer than its tissue (`membrane.stiffness`): both back-ends step the
-/// perfused cube with its capsule alike under gravity (300 steps), and the capsule's τ is the stiffer.
+/// A capsule ten times stiffer than its tissue (`membrane.stiffness`), and the thesis's capsule (no
+/// ghost sites: every capsule particle a boundary particle for all blood, SPEC §4.1): both back-ends
+/// step the perfused cube with its capsule alike under gravity (300 steps), and the capsule's τ is the
+/// stiffer.
 #[test]
 fn stiff_capsule_matches_cpu() {
     gpu_test("stiff_capsule_matches_cpu", |ctx| {
         let sc = perfused_cube_under_gravity(
             "stiff_capsule",
-            "membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483, stiffness: 10.0)),",
+            "membrane: Some(Membrane(threshold: 0.5, count: 3, radius: 0.5, angle: 0.7853981633974483, stiffness: 10.0, \
+             ghosts: false)),",
         );
         let mut cpu = solver_for(&sc);
         assert_eq!(cpu.params.membrane_stiffness, 10.0);
+        assert!(!cpu.params.capsule_ghosts && cpu.ghosts.is_empty(), "the thesis's capsule");
         let mut gpu = gpu_from(ctx, &cpu);
         let (gs, cs, d_x) = step_both(&mut cpu, &mut gpu, 300);
         let h = cpu.params.k_solid.h;
@@ -934,7 +947,7 @@ fn capsule_seal_matches_cpu() {
 /// under gravity after 50 CPU steps. One evaluation: the liquid's ρ, nˢ and p agree within 1e-5 (p
 /// within 1e-6 k), the same liquid sees a blood ghost, each ghost's wall pressure, density and
 /// reaction agree within 1e-4 of their largest, and the accelerations within 1e-4 of max |a|; the
-/// ghosts give the blood at the capsule the generated fractions where the layers did not, and their
+/// ghosts give the blood at the capsule the generated fractions where the capsule's layers did not, and their
 /// forces on the blood and the reactions on the capsule sum to zero. Then 300 steps from the generated
 /// state: positions within 1e-3 h.
 #[test]
@@ -1247,11 +1260,16 @@ fn outlet_and_ambient_pressure_match_cpu() {
         let s = &cpu.st.solid;
         let as_: Vec<[f32; 4]> = gpu.read_slot(Slot::SolidAcc, s.x.len()).unwrap();
         let d_as = max_vec_diff(&v3(&as_), &s.a);
-        // the same forces without the ambient term on the capsule: it must matter
+        // the same forces without the ambient term on the capsule (its particles' and its ghosts'
+        // reactions, `ghosts::ghost_on_liquid`'s `outside`): it must matter
         let mut p0 = cpu.params.clone();
         p0.ambient_pressure = 0.0;
+        assert!(!cpu.ghosts.is_empty(), "the capsule carries ghost sites by default");
         let a0 = {
             let nb = nbrs(&cpu);
+            let st = &cpu.st;
+            let g0 = ghosts::ghost_pressure(&p0, &cpu.ghosts, &cpu.ghost_placed, &st.liquid, &st.solid, &nb.liquid);
+            let nb = Nbrs { ghosts: nb.ghosts.map(|g| ghosts::GhostNbrs { p: &p0, state: &g0, ..g }), ..nbrs(&cpu) };
             let ctx = force_ctx(&cpu, &p0, &cpu.contacts);
             let st = &cpu.st;
             let seal = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, false).seal_scale;

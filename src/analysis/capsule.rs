@@ -5,9 +5,10 @@
 //!
 //! Two runs, each sampled every [`SAMPLE_STEPS`] steps until at least [`STEPS`] have been taken:
 //!
-//! - **hanging**: a perfused cube (a cube mesh, liver-like material, the capsule's layers) hangs from
-//!   its top plane under gravity, so that its blood drains at the Darcy speed onto the capsule's lower
-//!   face — where the default liver lost blood before the capsule's layers (README: deviations).
+//! - **hanging**: a perfused cube (a cube mesh, liver-like material, the capsule with its ghost sites)
+//!   hangs from its top plane under gravity, so that its blood drains at the Darcy speed onto the
+//!   capsule's lower face — where the default liver lost blood through the thesis's capsule (README:
+//!   deviations).
 //! - **indented**: `indentation.ron` (the membrane-enclosed specimen of thesis §4.2.2) re-gridded, a
 //!   sphere pressed 30 % of the specimen's height into its top and withdrawn, period after period,
 //!   with the time scale of the CI test (`tests/medical.rs`: stiffnesses ÷ 10, a 0.4-s period).
@@ -138,8 +139,8 @@ pub fn indented_specimen(n: usize, extra: &[String]) -> Result<Scenario, Validat
 /// the organ's surface, which lies Δx/2 beyond the capsule's particles (a particle stands for the
 /// volume Δx³ around it: the surface bounds the organ's volume, as SPEC §4.2's "outside the capsule"
 /// means outside the organ). The capsule's ghost sites (`membrane.ghosts`) fill that half spacing with
-/// the blood's lattice and their seal acts at the surface; with the capsule's layers the blood rests
-/// beneath the particles' plane. Until 2026-12-07 the count began at 0.1Δx beyond the particles'
+/// the blood's lattice and their seal acts at the surface; with the thesis's capsule (no ghosts) the
+/// blood rests beneath the particles' plane. Until 2026-12-07 the count began at 0.1Δx beyond the particles'
 /// plane, which counted blood inside the organ's volume (README, Deviations: 5 and 40 of the ghost
 /// probe's capsule case lay in that half spacing).
 pub const BEYOND_SURFACE_DX: f32 = 0.6;

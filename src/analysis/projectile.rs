@@ -434,7 +434,7 @@ mod tests {
             Scenario::from_str_with_overrides(PROJECTILE, "assets/scenarios/projectile.ron", &thesis).expect("valid");
         assert_eq!(stretch(&thesis), None);
         // the file's capsule carries ghost sites (README Deviations: relaxed 0.62 mm/s at 12³, 6.8 with
-        // the capsule's layers)
+        // the capsule's layers they replaced)
         assert!(sc.membrane.as_ref().is_some_and(|m| m.ghosts && m.seal));
         // SPEC §7.5's CI variant keeps the file's relaxation (0.3 s, ζ = 20 s⁻¹)
         let r = sc.relaxation.clone().expect("the CI variant relaxes");

@@ -54,7 +54,7 @@ pub struct GeneratedParticles {
     /// Equivalent mass a solid particle shows the liquid when it is a membrane (boundary) particle.
     pub solid_liquid_boundary_mass: Vec<f64>,
     /// Outward unit normal of a membrane particle in the generated configuration (its parent's n̂ of
-    /// SPEC §4.5's detection; zero for the tissue): the direction of the capsule's virtual layers.
+    /// SPEC §4.5's detection; zero for the tissue): the side of its ghost sites and seal.
     pub solid_normal: Vec<V3>,
     pub boundary_pos: Vec<V3>,
     pub boundary_object: Vec<u32>,

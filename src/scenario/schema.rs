@@ -675,12 +675,14 @@ pub struct Membrane {
     /// pressure, and seeps where that pressure is zero.
     #[serde(default = "yes")]
     pub seal: bool,
-    /// The capsule's ghost sites (default false; README: deviations from SPEC, "The capsule's missing
-    /// lattice sites as ghosts"): the tissue's and the blood's lattice sites that the organ's surface
-    /// truncates within R of the body, carried by their nearest capsule particle and counted for the
-    /// blood beneath it — nˢ, ρ and a wall pressure (`sim::ghosts`) — in place of the capsule's
-    /// virtual layers; the seal then acts at the organ's surface, Δx_s/2 beyond the capsule's particles.
-    #[serde(default)]
+    /// The capsule's ghost sites (default true; 3-D only; README: deviations from SPEC, "The capsule's
+    /// ghost sites"): the tissue's and the blood's lattice sites that the organ's surface truncates
+    /// within R of the body, carried by their nearest capsule particle and counted for the blood beneath
+    /// it — nˢ, ρ and a wall pressure (`sim::ghosts`) — so that the blood at the capsule sees the
+    /// generated fractions; the seal then acts at the organ's surface, Δx_s/2 beyond the capsule's
+    /// particles. `false`: the thesis's capsule, a single layer of boundary particles (SPEC §4.1), beneath
+    /// which the blood sees half a kernel of tissue and no penalty pressure.
+    #[serde(default = "yes")]
     pub ghosts: bool,
 }
 fn unit_ratio() -> f64 {
@@ -698,7 +700,7 @@ impl Default for Membrane {
             angle: std::f64::consts::FRAC_PI_4,
             stiffness: 1.0,
             seal: true,
-            ghosts: false,
+            ghosts: true,
         }
     }
 }

@@ -54,17 +54,15 @@ pub struct Params {
     pub tether_damping: f32,
     /// Membrane (capsule) particles' C10, C01 over the tissue's (`membrane.stiffness`; 1: none).
     pub membrane_stiffness: f32,
-    /// The capsule's layers for the liquid beneath it (`forces::capsule_inner`; README: deviations from
-    /// SPEC): ⌈R_l/Δx_l⌉ liquid layers at spacing Δx_l and ⌈R_×/Δx_s⌉ − 1 tissue layers at Δx_s (SPEC
-    /// §4.1's wall thickness); 0: no membrane.
-    pub capsule_liquid_layers: u32,
+    /// The lattice spacings Δx_l and Δx_s that the capsule's ghost sites and seal are measured in
+    /// (`sim::ghosts`, `forces::capsule_seal_pair`).
     pub capsule_dx_liquid: f32,
-    pub capsule_solid_layers: u32,
     pub capsule_dx_solid: f32,
     /// The capsule's seal (`membrane.seal`, `forces::capsule_seal`): 1 on, 0 off.
     pub capsule_seal: f32,
-    /// The capsule's ghost sites stand for the blood's and the tissue's missing lattice sites in place
-    /// of its virtual layers (`membrane.ghosts`, `sim::ghosts`).
+    /// The capsule's ghost sites stand for the blood's and the tissue's missing lattice sites beneath it
+    /// (`membrane.ghosts`, `sim::ghosts`); off, the blood sees the capsule as SPEC §4.1's single layer of
+    /// boundary particles (the thesis's capsule).
     pub capsule_ghosts: bool,
     pub k_s: f32,
     pub k_sat: f32,
@@ -359,15 +357,7 @@ impl Params {
             tether_omega2: tether_omega.powi(2) as f32,
             tether_damping: tether_zeta_2omega as f32,
             membrane_stiffness: capsule as f32,
-            capsule_liquid_layers: match &s.membrane {
-                Some(_) if g.dx_liquid > 0.0 => (2.0 * h_l / g.dx_liquid).ceil() as u32,
-                _ => 0,
-            },
             capsule_dx_liquid: g.dx_liquid as f32,
-            capsule_solid_layers: match &s.membrane {
-                Some(_) if g.dx_solid > 0.0 => ((2.0 * h_x / g.dx_solid).ceil() as u32).saturating_sub(1),
-                _ => 0,
-            },
             capsule_dx_solid: g.dx_solid as f32,
             capsule_ghosts: matches!(&s.membrane, Some(m) if m.ghosts && g.dx_liquid > 0.0 && g.dx_solid > 0.0),
             capsule_seal: match &s.membrane {

@@ -14,7 +14,7 @@
 //!   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); without `sum_liquid` (`density_solid_kept`,
 //!   evaluation 0) nˡ is the one of the previous step's evaluation 1, on the same positions.
 
-use super::forces::{capsule_inner, capsule_liquid_layers, capsule_normal, capsule_solid_layers};
+use super::forces::{capsule_inner, capsule_normal};
 use super::{BoundarySet, LiquidSet, Nbrs, SolidSet};
 use crate::scenario::SolidFlags;
 use crate::sim::params::{OutletRegion, Params};
@@ -80,14 +80,8 @@ pub fn density_liquid(
             nb.solid.for_each(xi, kx.r, |j, xij, r| {
                 if s.flags[j] & SolidFlags::MEMBRANE != 0 {
                     let n = capsule_normal(s.def_grad[j], s.normal0[j]);
-                    if capsule_inner(p, n, xij) {
-                        // beneath the capsule: its layers continue the liquid (ρ) and the tissue (nˢ);
-                        // with ghosts, the ghosts do
-                        if !p.capsule_ghosts {
-                            capsule_liquid_layers(p, n, xij, kl.r, |_, rg| rho += s.m_bl[j] * kl.w_poly6(rg));
-                            capsule_solid_layers(p, n, xij, kx.r, |_, rg| sum_s += s.m[j] * kx.w_poly6(rg));
-                        }
-                    } else if r < kl.r && !sees {
+                    // a boundary particle (2.46) unless the ghosts continue the liquid here (`capsule_inner`)
+                    if !capsule_inner(p, n, xij) && r < kl.r && !sees {
                         rho += s.m_bl[j] * kl.w_poly6(r);
                     }
                 }

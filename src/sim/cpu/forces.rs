@@ -3,7 +3,7 @@
 //! Liquid (2.50): −nˡ∇p with the spiky kernel (D-15, D-16), mirrored boundary pressure (§4.1, D-23),
 //! viscosity κ_V(η/ρ_i)Σ(m_j/ρ_j)(v_j − v_i)∇²W_V (D-7, D-17), pairwise friction (2.17, D-18), g, and
 //! when enabled the surface tension (3.3) and the liquid–void attraction (3.4) (§3.12); the capsule's
-//! layers and its seal (`capsule_inner`, `capsule_seal_pair`; README: deviations from SPEC).
+//! ghost sites and its seal (`capsule_inner`, `sim::ghosts`, `capsule_seal_pair`; README: deviations from SPEC).
 //! Solid (2.48): deviatoric stress over bonds, −nˢ∇p, artificial stress (2.59)–(2.60), artificial
 //! viscosity (2.54)–(2.58) over current neighbours, boundary contact, friction and attraction reactions,
 //! membrane reactions gathered from the liquid (§4.1: no atomics), g. XSPH (2.69) for both, in
@@ -375,48 +375,18 @@ pub fn capsule_normal(f: Mat3, n0: Vec3) -> Vec3 {
     if l2 > 1e-12 { n / l2.sqrt() } else { Vec3::ZERO }
 }
 
-/// The capsule seen from the liquid beneath it (README: deviations from SPEC): a membrane particle j
-/// stands for a wall of ⌈R/Δx⌉ layers (SPEC §4.1's thickness) along its outward normal n̂
-/// (`capsule_normal`), for liquid particles on the capsule's inner side, (x_j − x_i)·n̂ ≥ 0 — for
-/// which every layer lies no nearer than j itself, so the walks within R of j find each layer within R
-/// of i. For the liquid's ρ (2.46) and its boundary force (§4.1) the wall continues the liquid's
-/// lattice, which lies half a spacing beneath the capsule (`keep_liquid_beneath_capsule`): layers at
-/// x_j + (k + ½)Δx_l n̂, k = 0 … `capsule_liquid_layers` − 1, in place of j itself; for the liquid's nˢ
-/// (D-8) it continues the tissue's: layers at x_j + kΔx_s n̂, k = 1 … `capsule_solid_layers`, besides
-/// j. Liquid on the outer side sees j alone, as SPEC §4.1 has it. Without the layers the liquid beneath
-/// a single-layer capsule saw half a kernel of tissue (nˢ ≈ 0.3–0.45 where the tissue holds 0.7), so
-/// its penalty pressure (2.53) stayed 0 however much blood collected there, and blood drained through
-/// the liver's lower face at the Darcy speed. Twin of `capsule_inner` in common.wgsl.
+/// Whether liquid i lies beneath membrane particle j's capsule, (x_j − x_i)·n̂ ≥ 0 along its outward
+/// normal n̂ (`capsule_normal`), where the capsule's ghost sites (`membrane.ghosts`, `sim::ghosts`)
+/// stand in for the tissue and the blood that the organ's surface truncates: for such liquid j is no
+/// boundary particle (its ghosts are the wall, `ghosts::ghost_on_liquid`), and for liquid on the outer
+/// side it is one unless that liquid sees a ghost (SPEC §4.1). Without ghosts every liquid particle
+/// sees j as SPEC §4.1's boundary particle — the thesis's single-layer capsule, beneath which the blood
+/// sees half a kernel of tissue (nˢ ≈ 0.3–0.45 where the tissue holds 0.6–0.7), so its penalty
+/// pressure (2.53) stays 0 however much blood collects there and it drains through a lower face at
+/// the Darcy speed (README: deviations from SPEC). Twin of `capsule_inner` in common.wgsl.
 #[inline]
 pub fn capsule_inner(p: &Params, n: Vec3, xij: Vec3) -> bool {
-    p.capsule_liquid_layers != 0 && n != Vec3::ZERO && xij.dot(n) <= 0.0
-}
-
-/// Calls `f(x_i − x_g, |x_i − x_g|)` for each of the capsule's liquid layers of membrane particle j
-/// within `radius` of liquid i, x_g = x_j + (k + ½)Δx_l n̂, k = 0 … `capsule_liquid_layers` − 1, from
-/// x_ij = x_i − x_j ([`capsule_inner`]). Twin of the loops over `capsule_liquid_layer` in the shaders.
-#[inline]
-pub fn capsule_liquid_layers(p: &Params, n: Vec3, xij: Vec3, radius: f32, mut f: impl FnMut(Vec3, f32)) {
-    for k in 0..p.capsule_liquid_layers {
-        let xig = xij - n * ((k as f32 + 0.5) * p.capsule_dx_liquid);
-        let rg = xig.dot(xig).sqrt();
-        if rg < radius {
-            f(xig, rg);
-        }
-    }
-}
-
-/// The same for the capsule's tissue layers x_j + kΔx_s n̂, k = 1 … `capsule_solid_layers`. Twin of the
-/// loop over `capsule_solid_layer` in density.wgsl.
-#[inline]
-pub fn capsule_solid_layers(p: &Params, n: Vec3, xij: Vec3, radius: f32, mut f: impl FnMut(Vec3, f32)) {
-    for k in 1..=p.capsule_solid_layers {
-        let xig = xij - n * (k as f32 * p.capsule_dx_solid);
-        let rg = xig.dot(xig).sqrt();
-        if rg < radius {
-            f(xig, rg);
-        }
-    }
+    p.capsule_ghosts && n != Vec3::ZERO && xij.dot(n) <= 0.0
 }
 
 /// Steps (of Δt_max) over which the capsule's seal walks liquid that lies beyond the capsule's plane
@@ -672,14 +642,8 @@ pub fn forces_liquid(
                         seal_sum += sp.stop * capsule_seal_share(l.m[i], s.m[j]);
                         seal_back += sp.back;
                     }
-                    if capsule_inner(p, n, xij) {
-                        // beneath the capsule: its liquid layers (`capsule_inner`), or its ghosts
-                        if !p.capsule_ghosts {
-                            capsule_liquid_layers(p, n, xij, kl.r, |xig, rg| {
-                                a += liquid_from_boundary(p, rho, pr, n_l, vi, m_b, vb, xig, rg, mirror, 1.0, g, 0.0);
-                            });
-                        }
-                    } else if !sees_ghost {
+                    // beneath the capsule its ghosts are the wall (`capsule_inner`)
+                    if !capsule_inner(p, n, xij) && !sees_ghost {
                         a += liquid_from_boundary(p, rho, pr, n_l, vi, m_b, vb, xij, r, mirror, 1.0, g, 0.0);
                     }
                 }
@@ -893,18 +857,8 @@ pub fn forces_solid(
                         let (rho_j, p_j, nl_j, v_j, m_b) = (l.rho[j], l.p[j], l.n_l[j], l.v[j], s.m_bl[i]);
                         let (mirror, p_a) = (ObjectContact::MIRROR, p.ambient_pressure);
                         let xjb = -xij;
-                        if capsule_inner(p, normal_i, xjb) {
-                            // the reaction of its liquid layers on liquid j beneath it (`capsule_inner`);
-                            // with ghosts, theirs (below)
-                            if !p.capsule_ghosts {
-                                capsule_liquid_layers(p, normal_i, xjb, kl.r, |xjg, rg| {
-                                    let on_j = liquid_from_boundary(
-                                        p, rho_j, p_j, nl_j, v_j, m_b, vi, xjg, rg, mirror, 1.0, g_l, p_a,
-                                    );
-                                    fm -= on_j * l.m[j];
-                                });
-                            }
-                        } else if !c.sees_ghost(j) {
+                        // on liquid j beneath the capsule its ghosts' reaction acts instead (below)
+                        if !capsule_inner(p, normal_i, xjb) && !c.sees_ghost(j) {
                             let on_j =
                                 liquid_from_boundary(p, rho_j, p_j, nl_j, v_j, m_b, vi, xjb, r, mirror, 1.0, g_l, p_a);
                             fm -= on_j * l.m[j];
@@ -958,13 +912,27 @@ mod tests {
         Params::new(&sc, &generate(&sc))
     }
 
-    /// The seal's rule for one membrane particle (normal +z) and liquid at depth `sd` along it moving
-    /// at `vz`: in the band it stops the outward velocity, never an inward one; beyond the plane it
-    /// also walks the particle back in `CAPSULE_SEAL_STEPS` steps, by its advection velocity; outside
-    /// its band and reach it acts on nothing, but the particle still counts in the weights.
+    /// The seal's plane: the organ's surface, Δx_s/2 beyond the capsule's particles, with the capsule's
+    /// ghost sites (the default), which fill that half spacing with blood; the particles' own plane
+    /// with the thesis's capsule.
+    #[test]
+    fn the_seal_acts_at_the_organs_surface_with_ghost_sites() {
+        let mut p = capsule_params();
+        assert!(p.capsule_ghosts, "membrane.ghosts is on by default");
+        assert_eq!(capsule_seal_offset(&p), 0.5 * p.capsule_dx_solid);
+        p.capsule_ghosts = false;
+        assert_eq!(capsule_seal_offset(&p), 0.0);
+    }
+
+    /// The seal's rule for one membrane particle (normal +z) and liquid at depth `sd` along its plane
+    /// (the thesis's capsule, whose plane is the particle's: `capsule_seal_offset` 0) moving at `vz`:
+    /// in the band it stops the outward velocity, never an inward one; beyond the plane it also walks
+    /// the particle back in `CAPSULE_SEAL_STEPS` steps, by its advection velocity; outside its band and
+    /// reach it acts on nothing, but the particle still counts in the weights.
     #[test]
     fn the_seal_removes_outward_motion_through_the_capsule_only() {
-        let p = capsule_params();
+        let mut p = capsule_params();
+        p.capsule_ghosts = false;
         assert_eq!(p.capsule_seal, 1.0, "membrane.seal is on by default");
         let (dx_l, dt) = (p.capsule_dx_liquid, p.dt_upper());
         let n = Vec3::Z;

@@ -378,7 +378,7 @@ impl CpuSolver {
                 &l.m,
                 &solver.geoms,
             );
-            // no ghost could be built (a 2-D scene): the capsule keeps its layers
+            // no ghost could be built (a 2-D scene): the thesis's capsule
             solver.params.capsule_ghosts = !solver.ghosts.is_empty();
             solver.build_grids();
         }

@@ -69,7 +69,7 @@ pub enum Slot {
     /// `grid_reorder`: the liquid's live arrays gathered in cell order (`LiquidMove`, 64 bytes each).
     LiquidScratch,
     /// A membrane particle's outward normal in the generated configuration (`SolidSet::normal0`;
-    /// static): the direction of the capsule's virtual layers.
+    /// static): the capsule's outward normal (`capsule_normal`), which sides its ghosts and seal.
     SolidNormal0,
     /// Each solid particle's bond count in the generated configuration (`SolidSet::bond_count0`;
     /// static): whether a membrane particle still seals (`capsule_seals`).

@@ -121,18 +121,17 @@ pub struct SimParams {
     pub ambient_pressure: f32,
     /// `Params::bond_reach` (0: every particle tests its bonds against the blades).
     pub bond_reach: f32,
-    /// `Params::capsule_liquid_layers`, `capsule_dx_liquid`, `capsule_solid_layers`,
-    /// `capsule_dx_solid`: the capsule's layers for the liquid beneath it.
-    pub capsule_liquid_layers: u32,
+    /// `Params::capsule_dx_liquid`, `capsule_dx_solid`: the spacings of the capsule's ghosts and seal.
     pub capsule_dx_liquid: f32,
-    pub capsule_solid_layers: u32,
     pub capsule_dx_solid: f32,
     /// `Params::capsule_seal`.
     pub capsule_seal: f32,
-    /// The capsule's ghost sites in use (0: its layers instead) and `forces::capsule_seal_offset`.
+    /// The capsule's ghost sites in use (0: none) and `forces::capsule_seal_offset`.
     pub capsule_ghosts: u32,
     pub capsule_seal_offset: f32,
     pub _pad_seal2: f32,
+    pub _pad_seal3: f32,
+    pub _pad_seal4: f32,
 }
 
 /// Set counts of a scene, as the uniform block carries them.
@@ -251,14 +250,14 @@ impl SimParams {
             wc_dx_l: p.wc_dx_l,
             ambient_pressure: p.ambient_pressure,
             bond_reach: p.bond_reach(),
-            capsule_liquid_layers: p.capsule_liquid_layers,
             capsule_dx_liquid: p.capsule_dx_liquid,
-            capsule_solid_layers: p.capsule_solid_layers,
             capsule_dx_solid: p.capsule_dx_solid,
             capsule_seal: p.capsule_seal,
             capsule_ghosts: if p.capsule_ghosts { c.ghosts } else { 0 },
             capsule_seal_offset: crate::sim::cpu::forces::capsule_seal_offset(p),
             _pad_seal2: 0.0,
+            _pad_seal3: 0.0,
+            _pad_seal4: 0.0,
         }
     }
 }
