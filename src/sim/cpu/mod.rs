@@ -380,6 +380,13 @@ impl CpuSolver {
             );
             // no ghost could be built (a 2-D scene): the thesis's capsule
             solver.params.capsule_ghosts = !solver.ghosts.is_empty();
+            let blood = solver.ghosts.m_l.iter().filter(|&&m| m > 0.0).count();
+            log::info!(
+                "the capsule's ghost sites: {} ({blood} of the blood's, {} of the tissue's) for {} solid particles",
+                solver.ghosts.len(),
+                solver.ghosts.len() - blood,
+                solver.st.solid.x.len()
+            );
             solver.build_grids();
         }
         solver.last_good = solver.st.clone();
