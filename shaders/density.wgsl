@@ -57,7 +57,8 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+        let q_end = liquid_cell_start[c.y + 1];
+        for (var q = liquid_cell_start[c.x]; q < q_end; q++) {
             let e = liquid_candidate(q);
             let xij = min_image_wrapped(xi - e.pos_m.xyz);
             let r2 = dot3(xij, xij);
@@ -72,7 +73,8 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
+        let q_end = boundary_cell_start[c.y + 1];
+        for (var q = boundary_cell_start[c.x]; q < q_end; q++) {
             let e = boundary_order[q];
             let j = e.id;
             let xij = min_image_wrapped(xi - e.pos);
@@ -96,7 +98,8 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var k = kb; k < ke; k += kstep) {
             let c = nbr_span(ci, k);
             if (c.x < 0) { continue; }
-            for (var q = ghost_cell_start[c.x]; q < ghost_cell_start[c.y + 1]; q++) {
+            let q_end = ghost_cell_start[c.y + 1];
+            for (var q = ghost_cell_start[c.x]; q < q_end; q++) {
                 let e = ghost_order[q];
                 let xig = min_image_wrapped(xi - e.pos);
                 let r2 = dot3(xig, xig);
@@ -119,7 +122,8 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
+        let q_end = solid_cell_start[c.y + 1];
+        for (var q = solid_cell_start[c.x]; q < q_end; q++) {
             let e = solid_order[q];
             let j = e.id;
             let xij = min_image_wrapped(xi - e.pos);
@@ -191,7 +195,8 @@ fn solid_density(gid: vec3<u32>, sum_liquid: bool) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
+        let q_end = solid_cell_start[c.y + 1];
+        for (var q = solid_cell_start[c.x]; q < q_end; q++) {
             let e = solid_order[q];
             let j = e.id;
             let xij = min_image_wrapped(xi - e.pos);
@@ -208,7 +213,8 @@ fn solid_density(gid: vec3<u32>, sum_liquid: bool) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
+        let q_end = boundary_cell_start[c.y + 1];
+        for (var q = boundary_cell_start[c.x]; q < q_end; q++) {
             let e = boundary_order[q];
             let j = e.id;
             let xij = min_image_wrapped(xi - e.pos);
@@ -233,7 +239,8 @@ fn solid_density(gid: vec3<u32>, sum_liquid: bool) {
         for (var k = kb; k < ke; k += kstep) {
             let c = nbr_span(ci, k);
             if (c.x < 0) { continue; }
-            for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+            let q_end = liquid_cell_start[c.y + 1];
+            for (var q = liquid_cell_start[c.x]; q < q_end; q++) {
                 let e = liquid_candidate(q);
                 let xij = min_image_wrapped(xi - e.pos_m.xyz);
                 let r2 = dot3(xij, xij);

@@ -184,7 +184,8 @@ fn outlet_velocity(i: u32, xi: vec3<f32>, vi: vec3<f32>, n: vec3<f32>, rho_o: f3
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+        let q_end = liquid_cell_start[c.y + 1];
+        for (var q = liquid_cell_start[c.x]; q < q_end; q++) {
             let e = liquid_candidate(q);
             let j = e.j;
             let xij = min_image_wrapped(xi - e.pos_m.xyz);
@@ -267,7 +268,8 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+        let q_end = liquid_cell_start[c.y + 1];
+        for (var q = liquid_cell_start[c.x]; q < q_end; q++) {
             let e = liquid_candidate(q);
             let j = e.j;
             let xij = min_image_wrapped(xi - e.pos_m.xyz);
@@ -304,7 +306,8 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
+        let q_end = boundary_cell_start[c.y + 1];
+        for (var q = boundary_cell_start[c.x]; q < q_end; q++) {
             let e = boundary_order[q];
             let j = e.id;
             let xij = min_image_wrapped(xi - e.pos);
@@ -328,7 +331,8 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
         for (var k = kb; k < ke; k += kstep) {
             let c = nbr_span(ci, k);
             if (c.x < 0) { continue; }
-            for (var q = ghost_cell_start[c.x]; q < ghost_cell_start[c.y + 1]; q++) {
+            let q_end = ghost_cell_start[c.y + 1];
+            for (var q = ghost_cell_start[c.x]; q < q_end; q++) {
                 let e = ghost_order[q];
                 let xig = min_image_wrapped(xi - e.pos);
                 let r2 = dot3(xig, xig);
@@ -354,7 +358,8 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
+        let q_end = solid_cell_start[c.y + 1];
+        for (var q = solid_cell_start[c.x]; q < q_end; q++) {
             let e = solid_order[q];
             let j = e.id;
             let xij = min_image_wrapped(xi - e.pos);
@@ -488,7 +493,8 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = solid_cell_start[c.x]; q < solid_cell_start[c.y + 1]; q++) {
+        let q_end = solid_cell_start[c.y + 1];
+        for (var q = solid_cell_start[c.x]; q < q_end; q++) {
             let e = solid_order[q];
             let j = e.id;
             let xij = min_image_wrapped(xi - e.pos);
@@ -523,7 +529,8 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
-        for (var q = boundary_cell_start[c.x]; q < boundary_cell_start[c.y + 1]; q++) {
+        let q_end = boundary_cell_start[c.y + 1];
+        for (var q = boundary_cell_start[c.x]; q < q_end; q++) {
             let e = boundary_order[q];
             let j = e.id;
             let xib = min_image_wrapped(xi - e.pos);
@@ -576,7 +583,8 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
         for (var k = kb; k < ke; k += kstep) {
             let c = nbr_span(ci, k);
             if (c.x < 0) { continue; }
-            for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+            let q_end = liquid_cell_start[c.y + 1];
+            for (var q = liquid_cell_start[c.x]; q < q_end; q++) {
                 let e = liquid_candidate(q);
                 let j = e.j;
                 let xij = min_image_wrapped(xi - e.pos_m.xyz);
@@ -617,7 +625,8 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
         if (membrane) {
             // the reaction of its ghosts' boundary forces on the liquid (ghosts.wgsl ghost_pressure)
             if (params.capsule_ghosts != 0u) {
-                for (var k = ghost_start[i]; k < ghost_start[i + 1u]; k++) {
+                let k_end = ghost_start[i + 1u];
+                for (var k = ghost_start[i]; k < k_end; k++) {
                     fm += ghost_state[2u * k + 1u].xyz;
                 }
             }

@@ -53,7 +53,8 @@ fn ghost_pressure(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(cg, k);
         if (c.x < 0) { continue; }
-        for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+        let q_end = liquid_cell_start[c.y + 1];
+        for (var q = liquid_cell_start[c.x]; q < q_end; q++) {
             let e = liquid_candidate(q);
             let xgj = min_image_wrapped(xg - e.pos_m.xyz);
             let r2 = dot3(xgj, xgj);
@@ -78,7 +79,8 @@ fn ghost_pressure(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(cg, k);
         if (c.x < 0) { continue; }
-        for (var q = liquid_cell_start[c.x]; q < liquid_cell_start[c.y + 1]; q++) {
+        let q_end = liquid_cell_start[c.y + 1];
+        for (var q = liquid_cell_start[c.x]; q < q_end; q++) {
             let e = liquid_candidate(q);
             let xgj = min_image_wrapped(xg - e.pos_m.xyz);
             let r2 = dot3(xgj, xgj);
