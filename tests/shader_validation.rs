@@ -173,3 +173,56 @@ fn literal(family: &str, name: &str) -> naga::Literal {
         ref e => panic!("{name} is {e:?}, not a literal"),
     }
 }
+
+/// The compute shaders are built without wgpu's loop bounding (`create_shader_module_trusted` in
+/// `sim::gpu`), which is sound only if none of their loops can run forever. This test pins the loops
+/// that the SAFETY comment there audits: every `for` steps its variable upward by a positive amount (or
+/// doubles it from 1), and the `while` and bare `loop` statements are the four listed. A new loop of
+/// another shape fails here until it is audited and added.
+#[test]
+fn compute_loops_are_the_audited_ones() {
+    let mut failures = Vec::new();
+    let mut for_loops = 0;
+    let mut others = Vec::new();
+    for (name, text) in SHADER_FILES {
+        if name.starts_with("render_") {
+            continue;
+        }
+        for (n, line) in text.lines().enumerate() {
+            let code = line.split("//").next().unwrap_or("").trim();
+            if let Some(head) = code.strip_prefix("for (") {
+                for_loops += 1;
+                let update = head.rsplit(';').next().unwrap_or("").trim().trim_end_matches('{').trim();
+                let update = update.strip_suffix(')').unwrap_or(update).trim();
+                let var = head.strip_prefix("var ").and_then(|h| h.split([' ', ':']).next()).unwrap_or("");
+                let allowed = [
+                    format!("{var}++"),
+                    format!("{var} += kstep"),
+                    format!("{var} = {var} + 1u"),
+                    format!("{var} = {var} + 64u"),
+                    format!("{var} = {var} + COMPACT_WG"),
+                    format!("{var} = {var} * 2u"),
+                ];
+                if var.is_empty() || !allowed.contains(&update.to_string()) {
+                    failures.push(format!("{name}.wgsl:{}: for loop with update `{update}`", n + 1));
+                }
+            } else if code.starts_with("while ") || code.starts_with("while(") || code == "loop {" {
+                others.push(format!("{name}: {code}"));
+            }
+        }
+    }
+    let audited = [
+        "common: while (hi - lo > 1u) {",
+        "common: loop {",
+        "emit: while (em.acc >= em.volume && tries < em.slot_count) {",
+        "grid: loop {",
+    ];
+    for o in &others {
+        if !audited.contains(&o.as_str()) {
+            failures.push(format!("unaudited loop: {o}"));
+        }
+    }
+    assert_eq!(others.len(), audited.len(), "loops found: {others:?}");
+    assert!(for_loops > 50, "found only {for_loops} for loops: is the scan broken?");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

@@ -1585,10 +1585,26 @@ fn create_pipelines(
                 context: format!("shader {}", spec.family),
                 message: e.to_string(),
             })?;
-            let m = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(&format!("perfuse.{}", spec.family)),
-                source: wgpu::ShaderSource::Wgsl(src.into()),
-            });
+            // Every check but wgpu's loop bounding, which gives each loop a 64-bit iteration counter
+            // and a divergent exit test per iteration: in the neighbour walks that is per candidate,
+            // 8-12 % of the force passes on lavapipe (README, Performance).
+            let mut checks = wgpu::ShaderRuntimeChecks::checked();
+            checks.force_loop_bounding = false;
+            // SAFETY: without loop bounding the shaders must not loop forever. Every loop of the
+            // compute families (shaders/*.wgsl but render_*) terminates: `for` loops step an integer
+            // by a positive amount (1, NBR_SIDE, 64, COMPACT_WG) toward a bound that does not change
+            // inside the loop; the two `while` loops are a bisection (the interval halves) and the
+            // emitter's slot search (`tries` grows each pass up to the slot count); the two `loop`s are
+            // `powi` (b halves toward 0) and grid_sort_cells' insertion (w falls to the cell's start).
+            let m = unsafe {
+                device.create_shader_module_trusted(
+                    wgpu::ShaderModuleDescriptor {
+                        label: Some(&format!("perfuse.{}", spec.family)),
+                        source: wgpu::ShaderSource::Wgsl(src.into()),
+                    },
+                    checks,
+                )
+            };
             modules.insert(spec.family, m);
         }
         let Some(module) = modules.get(spec.family) else { continue };
