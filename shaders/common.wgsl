@@ -1009,6 +1009,11 @@ fn lap_viscosity(k: KernelConsts, r: f32) -> f32 {
 // density passes ran ≈ 15 % faster on the 64k block (README, Performance).
 override LIQUID_IN_CELL_ORDER: bool = true;
 
+// Pipeline constant (mod.rs `create_pipelines`): some axis of the domain is periodic (params.period has
+// a component > 0). The neighbour walks test it for every row and candidate; as a constant the driver
+// drops the periodic paths of a scene without one instead of branching on params.period each time.
+override PERIODIC: bool = true;
+
 // Candidate q of the liquid's cell list: xyz its position at the list's build, w its mass when
 // LIQUID_IN_CELL_ORDER (else unused: read it with liquid_candidate_mass); and its index.
 struct LiquidCandidate {
@@ -1099,7 +1104,7 @@ fn wrap_cells(nc: vec3<i32>, n: vec3<i32>) -> vec3<i32> {
 // Whether the rows of c's neighbour block wrap around a periodic x axis.
 fn nbr_wraps(c: vec3<i32>) -> bool {
     let nx = i32(params.grid_n.x);
-    return params.period.x > 0.0 && (c.x < GRID_REACH || c.x >= nx - GRID_REACH);
+    return PERIODIC && params.period.x > 0.0 && (c.x < GRID_REACH || c.x >= nx - GRID_REACH);
 }
 
 // Stride of the neighbour-offset loop `for (k = nbr_begin(); k < nbr_end(); k += nbr_step(c))`: a whole
@@ -1116,7 +1121,7 @@ fn nbr_span(c: vec3<i32>, k: u32) -> vec2<i32> {
     let nx = i32(params.grid_n.x);
     // No periodic axis (the usual scene): the row's cells straight from its (y, z), without nbr_cell's
     // per-axis wrap and the vector of offsets; the same span as the general path below.
-    if (all(params.period.xyz <= vec3<f32>(0.0))) {
+    if (!PERIODIC) {
         let y = c.y + i32((k / NBR_SIDE) % NBR_SIDE) - GRID_REACH;
         let z = c.z + i32(k / (NBR_SIDE * NBR_SIDE)) - GRID_REACH;
         let ny = i32(params.grid_n.y);
@@ -1144,10 +1149,10 @@ fn nbr_span(c: vec3<i32>, k: u32) -> vec2<i32> {
 // wrapped into the domain, so |d| < l and one add or subtract of l is the minimum image, without the
 // division; it equals min_image except half a period apart, beyond every search radius.
 fn min_image_wrapped(d: vec3<f32>) -> vec3<f32> {
-    let l = params.period.xyz;
-    if (all(l <= vec3<f32>(0.0))) {
+    if (!PERIODIC) {
         return d;
     }
+    let l = params.period.xyz;
     let half = 0.5 * l;
     let w = select(select(d, d + l, d < -half), d - l, d > half);
     return select(d, w, l > vec3<f32>(0.0));
@@ -1157,9 +1162,9 @@ fn min_image_wrapped(d: vec3<f32>) -> vec3<f32> {
 // every neighbour candidate): d − l·round(d/l) where l > 0, d elsewhere (the unselected quotient of a
 // non-periodic axis, d/0, is discarded).
 fn min_image(d: vec3<f32>) -> vec3<f32> {
-    let l = params.period.xyz;
-    if (all(l <= vec3<f32>(0.0))) {
+    if (!PERIODIC) {
         return d;
     }
+    let l = params.period.xyz;
     return select(d, d - l * round_away3(d / l), l > vec3<f32>(0.0));
 }

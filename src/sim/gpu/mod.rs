@@ -371,7 +371,8 @@ impl GpuSolver {
         let g3 = bytes(&[gs(counts.ghosts)]);
         let max_set = capacity.max(counts.solid).max(counts.boundary).max(counts.ghosts) as usize;
         let buffers = SimBuffers::new(&ctx.device, solver_init, [&g0, &g1, &g2, &g3], max_set, cells as usize);
-        let pipelines = create_pipelines(&ctx.device, &buffers, params.reorder_liquid)?;
+        let periodic = params.periodic_len().cmpgt(glam::Vec3::ZERO).any();
+        let pipelines = create_pipelines(&ctx.device, &buffers, params.reorder_liquid, periodic)?;
         let batch_staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("perfuse.batch_readback"),
             size: std::mem::size_of::<BatchState>() as u64,
@@ -1571,12 +1572,18 @@ impl PassTimer {
 /// One pipeline per entry point, with its explicit layout and bind group(s). `liquid_in_cell_order`
 /// (`numerics.reorder_liquid`) sets the shaders' pipeline constant `LIQUID_IN_CELL_ORDER`: the liquid's
 /// walks then read candidates from the particle arrays themselves (common.wgsl `liquid_candidate`).
+/// `periodic` (some axis has a period > 0, `Params::periodic_len`) sets `PERIODIC`, which lets the
+/// driver drop the walks' periodic paths in a scene without one.
 fn create_pipelines(
     device: &wgpu::Device,
     buffers: &SimBuffers,
     liquid_in_cell_order: bool,
+    periodic: bool,
 ) -> Result<HashMap<&'static str, Pipeline>, GpuError> {
-    let constants = [("LIQUID_IN_CELL_ORDER", if liquid_in_cell_order { 1.0 } else { 0.0 })];
+    let constants = [
+        ("LIQUID_IN_CELL_ORDER", if liquid_in_cell_order { 1.0 } else { 0.0 }),
+        ("PERIODIC", if periodic { 1.0 } else { 0.0 }),
+    ];
     let mut modules: HashMap<&'static str, wgpu::ShaderModule> = HashMap::new();
     let mut out = HashMap::new();
     for spec in passes::ALL_PASSES {
