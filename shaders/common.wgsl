@@ -717,10 +717,22 @@ fn signum(x: f32) -> f32 {
     return select(1.0, -1.0, (bitcast<u32>(x) & 0x80000000u) != 0u);
 }
 
-// compiler-rt __powisf2, as used by Rust's f32::powi.
+// compiler-rt __powisf2, as used by Rust's f32::powi. For 0 ≤ b < 16 (the scenario's exponents are
+// 1..=12) its multiplications unrolled without branches: r picks up a^(2^s) where bit s of b is set, in
+// the loop's order (1·a = a exactly), so the bits are the loop's; the artificial stress and pressure
+// call it once per neighbour pair.
 fn powi(a_in: f32, b_in: i32) -> f32 {
     var a = a_in;
     var b = b_in;
+    if (b >= 0 && b < 16) {
+        var r = 1.0;
+        for (var s = 0; s < 4; s++) {
+            r = select(r, r * a, (b & 1) != 0);
+            b = b / 2;
+            a = a * a;
+        }
+        return r;
+    }
     let recip = b < 0;
     var r = 1.0;
     loop {
@@ -936,59 +948,42 @@ fn outer3(u: vec3<f32>, w: vec3<f32>) -> mat3x3<f32> {
 }
 
 // ---- kernels (2.29)–(2.39), SPEC D-1/D-4; twins in src/sim/kernels.rs ----
+// Branch-free: both pieces are computed and select() keeps the twin's value (the same operations in the
+// same order, so the same bits). They run once per neighbour pair, and a divergent `if` costs a SIMD
+// driver (lavapipe) mask bookkeeping that the few flops it would skip do not repay.
 // Cubic spline W_C(r; h) (2.29).
 fn w_cubic(k: KernelConsts, r: f32) -> f32 {
     let q = r / k.h;
-    if (q < 1.0) {
-        return k.alpha_c * (1.0 - 1.5 * q * q + 0.75 * q * q * q);
-    } else if (q < 2.0) {
-        let t = 2.0 - q;
-        return k.alpha_c * 0.25 * t * t * t;
-    }
-    return 0.0;
+    let inner = k.alpha_c * (1.0 - 1.5 * q * q + 0.75 * q * q * q);
+    let t = 2.0 - q;
+    let outer = k.alpha_c * 0.25 * t * t * t;
+    return select(select(0.0, outer, q < 2.0), inner, q < 1.0);
 }
 
 // g of ∇W_C = g · x_ij (2.30).
 fn grad_cubic_factor(k: KernelConsts, r: f32) -> f32 {
     let q = r / k.h;
-    if (r <= 0.0 || q >= 2.0) {
-        return 0.0;
-    }
-    var dw: f32;
-    if (q < 1.0) {
-        dw = 3.0 * q - 2.25 * q * q;
-    } else {
-        let t = 2.0 - q;
-        dw = 0.75 * t * t;
-    }
-    return -(k.alpha_c / k.h) * dw / r;
+    let t = 2.0 - q;
+    let dw = select(0.75 * t * t, 3.0 * q - 2.25 * q * q, q < 1.0);
+    return select(-(k.alpha_c / k.h) * dw / r, 0.0, r <= 0.0 || q >= 2.0);
 }
 
 // Poly6 W6(r; R) (2.35).
 fn w_poly6(k: KernelConsts, r: f32) -> f32 {
-    if (r >= k.r) {
-        return 0.0;
-    }
     let s = r / k.r;
     let t = 1.0 - s * s;
-    return k.alpha_6 * t * t * t;
+    return select(k.alpha_6 * t * t * t, 0.0, r >= k.r);
 }
 
 // g of ∇W_S = g · x_ij for the spiky kernel (2.39).
 fn grad_spiky_factor(k: KernelConsts, r: f32) -> f32 {
-    if (r <= 0.0 || r >= k.r) {
-        return 0.0;
-    }
     let t = 1.0 - r / k.r;
-    return -(3.0 * k.alpha_s / k.r) * t * t / r;
+    return select(-(3.0 * k.alpha_s / k.r) * t * t / r, 0.0, r <= 0.0 || r >= k.r);
 }
 
 // ∇²W_V(r; R) (2.34, SPEC D-4).
 fn lap_viscosity(k: KernelConsts, r: f32) -> f32 {
-    if (r >= k.r) {
-        return 0.0;
-    }
-    return k.c_v * (1.0 - r / k.r);
+    return select(k.c_v * (1.0 - r / k.r), 0.0, r >= k.r);
 }
 
 // ---- grid (twin: src/sim/cpu/grid.rs) ----
