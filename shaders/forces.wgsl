@@ -14,11 +14,9 @@
 // Monaghan's Π_ij (2.54)–(2.58); zero for separating pairs.
 fn artificial_viscosity(vij: vec3<f32>, xij: vec3<f32>, r: f32, h: f32, c: f32, rho_bar: f32) -> f32 {
     let vx = dot3(vij, xij);
-    if (vx >= 0.0) {
-        return 0.0;
-    }
+    // branch-free (once per pair; see the kernels in common.wgsl): the same value where vx < 0
     let mu = h * vx / (r * r + params.av_gamma * h * h);
-    return (-params.av_alpha * c * mu + params.av_beta * mu * mu) / rho_bar;
+    return select((-params.av_alpha * c * mu + params.av_beta * mu * mu) / rho_bar, 0.0, vx >= 0.0);
 }
 
 // K_ij = K̄ max(0, 1 − ½(nˢ_i + nˢ_j)) (D-18).
