@@ -800,14 +800,29 @@ fn capsule_seal_walks(pr: f32) -> bool {
 // at the owner (capsule_seal_offset beyond its particle) by its normal or along the ghost's offset.
 // Twin of ghosts.rs ghost_counts.
 fn ghost_counts(g: u32, xig: vec3<f32>) -> bool {
-    if (ghost_pos[g].w == 0.0) {
+    return ghost_side_counts(ghost_side(g), xig);
+}
+
+// What ghost_counts reads of ghost g: whether its owner seals, its offset F_o d and the owner's normal.
+// A walk around one ghost (ghost_pressure) loads it once instead of for every liquid particle in reach.
+struct GhostSide {
+    seals: bool,
+    fd: vec3<f32>,
+    n: vec3<f32>,
+}
+
+fn ghost_side(g: u32) -> GhostSide {
+    return GhostSide(ghost_pos[g].w != 0.0, ghost_frame[2u * g].xyz, ghost_frame[2u * g + 1u].xyz);
+}
+
+fn ghost_side_counts(side: GhostSide, xig: vec3<f32>) -> bool {
+    if (!side.seals) {
         return false;
     }
-    let fd = ghost_frame[2u * g].xyz;
-    let n = ghost_frame[2u * g + 1u].xyz;
-    let xio = xig + fd;
+    let xio = xig + side.fd;
     let s = params.capsule_seal_offset;
-    return (any(n != vec3<f32>(0.0)) && dot3(xio, n) <= s) || dot3(xio, fd) <= s * sqrt(dot3(fd, fd));
+    let n = side.n;
+    return (any(n != vec3<f32>(0.0)) && dot3(xio, n) <= s) || dot3(xio, side.fd) <= s * sqrt(dot3(side.fd, side.fd));
 }
 
 // Acceleration of a liquid particle from one boundary-like neighbour (forces.rs

@@ -47,6 +47,7 @@ fn ghost_pressure(@builtin(global_invocation_id) gid: vec3<u32>) {
     let kb = nbr_begin();
     let ke = nbr_end();
     let kstep = nbr_step(cg);
+    let side = ghost_side(g);
     var sw = 0.0;
     var sp = 0.0;
     var sr = 0.0;
@@ -58,7 +59,7 @@ fn ghost_pressure(@builtin(global_invocation_id) gid: vec3<u32>) {
             let e = liquid_candidate(q);
             let xgj = min_image_wrapped(xg - e.pos_m.xyz);
             let r2 = dot3(xgj, xgj);
-            if (r2 < r2l && ghost_counts(g, -xgj)) {
+            if (r2 < r2l && ghost_side_counts(side, -xgj)) {
                 let w = w_poly6(kl, sqrt(r2));
                 let dj = liquid_dens[e.j];
                 sw += w;
@@ -84,7 +85,7 @@ fn ghost_pressure(@builtin(global_invocation_id) gid: vec3<u32>) {
             let e = liquid_candidate(q);
             let xgj = min_image_wrapped(xg - e.pos_m.xyz);
             let r2 = dot3(xgj, xgj);
-            if (r2 < r2l && ghost_counts(g, -xgj)) {
+            if (r2 < r2l && ghost_side_counts(side, -xgj)) {
                 let j = e.j;
                 let dj = liquid_dens[j];
                 let a = ghost_on_liquid(dj.x, dj.w, dj.y, liquid_vel[j].xyz, m_g, v_o, -xgj, sqrt(r2), p_g, rho_g,
