@@ -5,11 +5,11 @@
 //   clamped at 0 unless liquid_tension and nˢ below its limit or the particle in its region; plus the
 //   ambient pressure p_a before the clamp; in an outlet's buffer the outlet's p_a + gauge and the
 //   density of pure liquid at it instead.
-// * density_solid: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
-//   nˡ by summation of the liquid and the walls' liquid-equivalent mass (D-8 with §4.1's boundary as
-//   a continuation of the liquid, as in 2.46; membrane override 1 − nˢ_sat, §3.1.3),
-//   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); density_solid_kept, evaluation 0's, keeps the nˡ of
-//   the previous step's evaluation 1 (same positions).
+// * density_solid: nˢ = ρ/ρ₀ˢ, nˡ by summation of the liquid and the walls' liquid-equivalent mass (D-8
+//   with §4.1's boundary as a continuation of the liquid, as in 2.46; membrane override 1 − nˢ_sat,
+//   §3.1.3), pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); density_solid_kept, evaluation 0's, keeps
+//   the nˡ of the previous step's evaluation 1 (same positions) and walks nothing. The continuity
+//   dρˢ/dt (2.47) is summed in forces.wgsl's walks over the same solid and wall neighbours.
 // Neighbour sums run in the canonical order of grid.wgsl, as on the CPU.
 #import common
 
@@ -179,62 +179,33 @@ fn solid_density(gid: vec3<u32>, sum_liquid: bool) {
         return;
     }
     let i = solid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
-    let ks = params.k_solid;
     let kx = params.k_cross;
-    let support = 2.0 * ks.h;
-    let r2s = support * support;
     let r2x = kx.r * kx.r;
-    let xi = solid_pos[i].xyz;
-    let vi = solid_vel[i].xyz;
-    let ci = cell_coords(xi);
-    let kb = nbr_begin();
-    let ke = nbr_end();
-    let kstep = nbr_step(ci);
-    var drho = 0.0;
-    // continuity (2.47) over current solid neighbours
-    for (var k = kb; k < ke; k += kstep) {
-        let c = nbr_span(ci, k);
-        if (c.x < 0) { continue; }
-        let q_end = solid_cell_start[c.y + 1];
-        for (var q = solid_cell_start[c.x]; q < q_end; q++) {
-            let e = solid_order[q];
-            let j = e.id;
-            let xij = min_image_wrapped(xi - e.pos);
-            let r2 = dot3(xij, xij);
-            if (r2 < r2s && j != i) {
-                drho += solid_pos[j].w * dot3(vi - solid_vel[j].xyz, xij * grad_cubic_factor(ks, sqrt(r2)));
-            }
-        }
-    }
-    // ... and over B_s (solid-equivalent mass) within 2h_s; the walls' liquid-equivalent mass m_b^l within
-    // R_× for nˡ (a wall continues the liquid in the solid's fraction as in the liquid's ρ, 2.46)
-    let r2b = max(r2s, r2x);
-    var sum_b = 0.0;
-    for (var k = kb; k < ke; k += kstep) {
-        let c = nbr_span(ci, k);
-        if (c.x < 0) { continue; }
-        let q_end = boundary_cell_start[c.y + 1];
-        for (var q = boundary_cell_start[c.x]; q < q_end; q++) {
-            let e = boundary_order[q];
-            let j = e.id;
-            let xij = min_image_wrapped(xi - e.pos);
-            let r2 = dot3(xij, xij);
-            if (r2 < r2b) {
-                let r = sqrt(r2);
-                if (r < support) {
-                    let vb = boundary_vel[j];
-                    drho += vb.w * dot3(vi - vb.xyz, xij * grad_cubic_factor(ks, r));
-                }
-                if (r < kx.r) {
-                    sum_b += boundary_pos[j].w * w_poly6(kx, r);
-                }
-            }
-        }
-    }
     var n_l = 1.0 - params.n_sat;
     if ((solid_flags[i] & SOLID_MEMBRANE) == 0u && !sum_liquid) {
         n_l = solid_dens[i].y;
     } else if ((solid_flags[i] & SOLID_MEMBRANE) == 0u) {
+        let xi = solid_pos[i].xyz;
+        let ci = cell_coords(xi);
+        let kb = nbr_begin();
+        let ke = nbr_end();
+        let kstep = nbr_step(ci);
+        // the walls' liquid-equivalent mass m_b^l within R_×: a wall continues the liquid in the solid's
+        // fraction as it does in the liquid's ρ (2.46)
+        var sum_b = 0.0;
+        for (var k = kb; k < ke; k += kstep) {
+            let c = nbr_span(ci, k);
+            if (c.x < 0) { continue; }
+            let q_end = boundary_cell_start[c.y + 1];
+            for (var q = boundary_cell_start[c.x]; q < q_end; q++) {
+                let e = boundary_order[q];
+                let xij = min_image_wrapped(xi - e.pos);
+                let r2 = dot3(xij, xij);
+                if (r2 < r2x) {
+                    sum_b += boundary_pos[e.id].w * w_poly6(kx, sqrt(r2));
+                }
+            }
+        }
         var sum = 0.0;
         for (var k = kb; k < ke; k += kstep) {
             let c = nbr_span(ci, k);
@@ -255,5 +226,4 @@ fn solid_density(gid: vec3<u32>, sum_liquid: bool) {
     let n_s = rho / params.rho0_s;
     let pr = params.k_s * (n_s - params.n_sat) + params.k_sat * (n_s + n_l - 1.0);
     solid_dens[i] = vec4<f32>(rho, n_l, n_s, pr);
-    solid_drho[i].x = drho;
 }

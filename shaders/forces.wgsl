@@ -7,7 +7,8 @@
 // (3.3) and the liquid–void attraction (3.4) (§3.12).
 // Solid (2.48): deviatoric stress over bonds, −nˢ∇p, artificial stress (2.59)–(2.60), artificial
 // viscosity (2.54)–(2.58), boundary contact, friction and attraction reactions, membrane reactions
-// gathered from the liquid (§4.1: a gather, no atomics), g. XSPH (2.69) for both, in evaluation 0's
+// gathered from the liquid (§4.1: a gather, no atomics), g; and the solid's continuity dρ/dt (2.47) into
+// solid_drho over the pairs of the pressure term and the walls' contact. XSPH (2.69) for both, in evaluation 0's
 // force passes (forces_liquid_xsph, forces_solid_xsph): the sum walks the neighbours the forces walk.
 #import common
 
@@ -433,6 +434,7 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
     let i = solid_order[gid.x].id; // cell-ordered dispatch (common.wgsl)
     if ((solid_flags[i] & SOLID_KINEMATIC) != 0u) {
         solid_acc[i] = vec4<f32>(0.0);
+        solid_drho[i].x = 0.0;
         if (xsph) {
             solid_vel_adv[i] = vec4<f32>(solid_vel[i].xyz, 0.0);
         }
@@ -488,6 +490,8 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
     let ke = nbr_end();
     let kstep = nbr_step(ci);
     var d_xsph = vec3<f32>(0.0);
+    // and the continuity dρ/dt (2.47) over the same pairs
+    var drho = 0.0;
     for (var k = kb; k < ke; k += kstep) {
         let c = nbr_span(ci, k);
         if (c.x < 0) { continue; }
@@ -503,6 +507,7 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                 let vj = solid_vel[j].xyz;
                 let mj = solid_pos[j].w;
                 let grad = xij * grad_cubic_factor(ks, r);
+                drho += mj * dot3(vi - vj, grad);
                 let pj = dj.w / (dj.x * dj.x);
                 // −n∇p with the pair's mean fraction (antisymmetric: see forces_liquid)
                 var acc = grad * (-0.5 * (n_s + dj.z) * (pi + pj));
@@ -536,6 +541,11 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
             if (r2 < r2s) {
                 let r = sqrt(r2);
                 let grad = xib * grad_cubic_factor(ks, r);
+                let vb = boundary_vel[j];
+                // B_s in the continuity (2.47), with its solid-equivalent mass
+                if (r < support) {
+                    drho += vb.w * dot3(vi - vb.xyz, grad);
+                }
                 let o = objects[boundary_object(j)];
                 var bracket: f32;
                 if (o.density < 0.0) {
@@ -543,7 +553,6 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
                 } else {
                     bracket = pi + o.pressure / (o.density * o.density);
                 }
-                let vb = boundary_vel[j];
                 var vib = vi - vb.xyz;
                 if (o.friction >= 0.0) {
                     let n = surface_normal(o, xi, dims);
@@ -637,6 +646,7 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
         a -= d * params.tether_omega2 + vi * params.tether_damping;
     }
     solid_acc[i] = vec4<f32>(a + params.gravity.xyz, 0.0);
+    solid_drho[i].x = drho;
     if (xsph) {
         let eps = params.xsph_s;
         solid_vel_adv[i] = vec4<f32>(select(vi + d_xsph * eps, vi, eps == 0.0), 0.0);

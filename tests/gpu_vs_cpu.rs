@@ -82,7 +82,7 @@ fn nbrs(cpu: &CpuSolver) -> Nbrs<'_> {
 /// The CPU evaluation of `CpuSolver::evaluate`, pass by pass, on `cpu`'s state (its densities always
 /// summed afresh, and evaluation 1's forces checked against evaluation 0's).
 fn cpu_evaluate(cpu: &mut CpuSolver) {
-    let (density::LiquidDensities { rho: rho_l, n_s: n_s_l, p: p_l, sees_ghost }, (drho_s, n_l_s, n_s_s, p_s)) = {
+    let (density::LiquidDensities { rho: rho_l, n_s: n_s_l, p: p_l, sees_ghost }, (n_l_s, n_s_s, p_s)) = {
         let nb = nbrs(cpu);
         let p = &cpu.params;
         (
@@ -104,7 +104,6 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
         cpu.ghost_state = g;
     }
     let s = &mut cpu.st.solid;
-    s.drho = drho_s;
     s.n_l = n_l_s;
     s.n_s = n_s_s;
     s.p = p_s;
@@ -112,21 +111,26 @@ fn cpu_evaluate(cpu: &mut CpuSolver) {
     if cpu.params.hourglass > 0.0 {
         cpu.st.solid.hg_fit = solid::solid_fit(&cpu.params, &cpu.st.solid);
     }
-    let (a_l, a_s, vx_l, vx_s) = {
+    let (a_l, a_s, vx_l, vx_s, drho_s) = {
         let nb = nbrs(cpu);
         let ctx = force_ctx(cpu, &cpu.params, &cpu.contacts);
         let st = &cpu.st;
         let lf = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, true);
         let (a_l, vx_l, seal) = (lf.a, lf.xsph, lf.seal_scale);
-        let (a_s, vx_s) = forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, true, &seal);
+        let forces::SolidForces { a: a_s, xsph: vx_s, drho: drho_s } =
+            forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, true, &seal);
         // evaluation 1's passes (no XSPH) give the same accelerations bit for bit
         let lf1 = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, false);
         let (a_l1, none_l) = (lf1.a, lf1.xsph);
-        let (a_s1, none_s) = forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &seal);
+        let forces::SolidForces { a: a_s1, xsph: none_s, drho: drho_s1 } =
+            forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &seal);
         assert!(none_l.is_none() && none_s.is_none());
         assert!(bits3(&a_l1) == bits3(&a_l) && bits3(&a_s1) == bits3(&a_s), "forces differ with and without XSPH");
-        (a_l, a_s, vx_l.expect("XSPH velocities"), vx_s.expect("XSPH velocities"))
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert!(bits(&drho_s1) == bits(&drho_s), "dρ/dt differs with and without XSPH");
+        (a_l, a_s, vx_l.expect("XSPH velocities"), vx_s.expect("XSPH velocities"), drho_s)
     };
+    cpu.st.solid.drho = drho_s;
     cpu.st.liquid.a = a_l;
     cpu.st.solid.a = a_s;
     cpu.st.liquid.vx = vx_l;
@@ -261,16 +265,17 @@ fn grid_cell_lists_bit_identical_on_a_large_grid() {
     });
 }
 
-/// density_liquid / density_solid (2.46), (2.47), nˢ, nˡ (D-8) and penalty pressures (2.52), (2.53).
-/// Tolerances: ρ and dρ/dt relative 1e-5 of the largest value; n 1e-5 absolute; p 1e-6 of the penalty
-/// stiffness (p = k(nˢ + nˡ − 1 …) cancels to a small difference of O(1) terms, so its absolute
+/// density_liquid / density_solid (2.46), nˢ, nˡ (D-8) and penalty pressures (2.52), (2.53), and the
+/// continuity (2.47), which forces_solid sums in its walks (so the whole evaluation runs).
+/// Tolerances: ρ relative 1e-5 and dρ/dt 1e-4 of the largest value; n 1e-5 absolute; p 1e-6 of the
+/// penalty stiffness (p = k(nˢ + nˡ − 1 …) cancels to a small difference of O(1) terms, so its absolute
 /// error scales with k·ε_f32, and lavapipe may contract a·b + c into an FMA).
 #[test]
 fn density_passes_match_cpu() {
     gpu_test("density_passes_match_cpu", |ctx| {
         let mut cpu = cpu_after(40);
         let mut gpu = gpu_from(ctx, &cpu);
-        gpu.run_stages(&[Stage::Pass(passes::DENSITY_LIQUID), Stage::Pass(passes::DENSITY_SOLID)]).unwrap();
+        gpu.run_stages(passes::EVALUATE).unwrap();
         cpu_evaluate(&mut cpu);
         let (l, s) = (&cpu.st.liquid, &cpu.st.solid);
         let ld: Vec<[f32; 4]> = gpu.read_slot(Slot::LiquidDens, l.x.len()).unwrap();
@@ -644,7 +649,7 @@ fn surface_tension_forces_match_cpu() {
             let ctx = force_ctx(&cpu, &p, &cpu.contacts);
             let lf = forces::forces_liquid(&ctx, &cpu.st.liquid, &cpu.st.solid, &cpu.st.boundary, &nb, false);
             let st = &cpu.st;
-            (lf.a, forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &lf.seal_scale).0)
+            (lf.a, forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &lf.seal_scale).a)
         };
         let (a_l0, a_s0) = without(&|p| {
             p.wicking = 0.0;
@@ -694,7 +699,7 @@ fn wall_friction_matches_cpu() {
             let ctx = force_ctx(&cpu, &cpu.params, &contacts);
             let st = &cpu.st;
             let seal = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, false).seal_scale;
-            forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &seal).0
+            forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &seal).a
         };
         let part = max_vec_diff(&spec_contact, &s.a);
         // The stick regime returns −v_t/Δt_up: velocity rounding (~1e-6 of max |v| after the
@@ -894,7 +899,7 @@ fn capsule_seal_matches_cpu() {
             let ctx = force_ctx(&cpu, &p0, &cpu.contacts);
             let st = &cpu.st;
             let lf = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, true);
-            let a_s = forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &lf.seal_scale).0;
+            let a_s = forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &lf.seal_scale).a;
             (lf.a, a_s, lf.xsph.expect("ṽ"))
         };
         // the walk back to the capsule's plane, in the blood's advection velocity ṽ alone
@@ -1273,7 +1278,7 @@ fn outlet_and_ambient_pressure_match_cpu() {
             let ctx = force_ctx(&cpu, &p0, &cpu.contacts);
             let st = &cpu.st;
             let seal = forces::forces_liquid(&ctx, &st.liquid, &st.solid, &st.boundary, &nb, false).seal_scale;
-            forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &seal).0
+            forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, false, &seal).a
         };
         let share = max_vec_diff(&a0, &s.a);
         eprintln!(

@@ -7,12 +7,14 @@
 //!   `liquid_tension_below_ns` or the particle lies in a `liquid_tension_in` region; plus the ambient
 //!   pressure p_a (`numerics.ambient_pressure`) before the clamp; in an outlet's buffer the outlet's
 //!   prescribed p_a + gauge and the density of pure liquid at it instead.
-//! * `density_solid`: dρˢ/dt by continuity over current solid neighbours and B_s (2.47), nˢ = ρ/ρ₀ˢ,
-//!   nˡ by summation of the liquid and the walls' liquid-equivalent mass m_b^l (D-8 with §4.1's
-//!   boundary as a continuation of the liquid, as in (2.46); README: deviations from SPEC; membrane
-//!   override 1 − nˢ_sat, §3.1.3),
+//! * `density_solid`: nˢ = ρ/ρ₀ˢ, nˡ by summation of the liquid and the walls' liquid-equivalent mass
+//!   m_b^l (D-8 with §4.1's boundary as a continuation of the liquid, as in (2.46); README: deviations
+//!   from SPEC; membrane override 1 − nˢ_sat, §3.1.3),
 //!   pˢ = k_s(nˢ − nˢ_sat) + k_sat(nˢ + nˡ − 1) (2.52); without `sum_liquid` (`density_solid_kept`,
-//!   evaluation 0) nˡ is the one of the previous step's evaluation 1, on the same positions.
+//!   evaluation 0) nˡ is the one of the previous step's evaluation 1, on the same positions, and the
+//!   pass walks nothing. The solid's continuity dρˢ/dt (2.47) over current solid neighbours and B_s is
+//!   summed by `forces::forces_solid` in its walks over the same pairs (a separate walk cost both
+//!   back-ends ≈ 10 % of a step).
 
 use super::forces::{capsule_inner, capsule_normal};
 use super::{BoundarySet, LiquidSet, Nbrs, SolidSet};
@@ -114,9 +116,10 @@ pub fn density_liquid(
     d
 }
 
-/// Returns (dρ/dt, nˡ, nˢ, p) for every solid particle; nˡ summed over the liquid (`density_solid`) or,
-/// without `sum_liquid`, the one `s` holds (`density_solid_kept`: evaluation 0 of a step keeps the nˡ of
-/// the previous step's evaluation 1, taken on the same positions).
+/// Returns (nˡ, nˢ, p) for every solid particle; nˡ summed over the liquid and the walls (`density_solid`)
+/// or, without `sum_liquid`, the one `s` holds (`density_solid_kept`: evaluation 0 of a step keeps the nˡ
+/// of the previous step's evaluation 1, taken on the same positions). The continuity dρ/dt (2.47) is
+/// summed in `forces::forces_solid`'s walks over the same neighbours.
 pub fn density_solid(
     p: &Params,
     s: &SolidSet,
@@ -124,57 +127,39 @@ pub fn density_solid(
     b: &BoundarySet,
     nb: &Nbrs,
     sum_liquid: bool,
-) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<f32>) {
-    let ks = &p.k_solid;
+) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     let kx = &p.k_cross;
-    let support = 2.0 * ks.h;
     let n_l_membrane = 1.0 - p.n_sat;
-    let out: Vec<(f32, f32, f32, f32)> = (0..s.x.len())
+    let out: Vec<(f32, f32, f32)> = (0..s.x.len())
         .into_par_iter()
         .with_min_len(super::MIN_PAR_LEN)
         .map(|i| {
             let xi = s.x[i];
-            let vi = s.v[i];
-            let mut drho = 0.0f32;
-            nb.solid.for_each(xi, support, |j, xij, r| {
-                if j != i {
-                    drho += s.m[j] * (vi - s.v[j]).dot(xij * ks.grad_cubic_factor(r));
-                }
-            });
-            // B_s in the continuity within 2h_s, and the walls' liquid-equivalent mass m_b^l within R_× for
-            // nˡ: a wall continues the liquid in the solid's fraction as it does in the liquid's ρ (2.46)
-            let mut sum_b = 0.0f32;
-            nb.boundary.for_each(xi, support.max(kx.r), |j, xij, r| {
-                if r < support {
-                    drho += b.m_s[j] * (vi - b.v[j]).dot(xij * ks.grad_cubic_factor(r));
-                }
-                if r < kx.r {
-                    sum_b += b.m_l[j] * kx.w_poly6(r);
-                }
-            });
             let n_l = if s.flags[i] & SolidFlags::MEMBRANE != 0 {
                 n_l_membrane
             } else if !sum_liquid {
                 s.n_l[i]
             } else {
+                // the walls' liquid-equivalent mass m_b^l within R_×: a wall continues the liquid in the
+                // solid's fraction as it does in the liquid's ρ (2.46)
+                let mut sum_b = 0.0f32;
+                nb.boundary.for_each(xi, kx.r, |j, _, r| sum_b += b.m_l[j] * kx.w_poly6(r));
                 let mut sum = 0.0f32;
                 nb.liquid.for_each(xi, kx.r, |j, _, r| sum += l.m[j] * kx.w_poly6(r));
                 (sum + sum_b) / p.rho0_l
             };
             let n_s = s.rho[i] / p.rho0_s;
             let pr = p.k_s * (n_s - p.n_sat) + p.k_sat * (n_s + n_l - 1.0);
-            (drho, n_l, n_s, pr)
+            (n_l, n_s, pr)
         })
         .collect();
     let mut a = Vec::with_capacity(out.len());
     let mut bb = Vec::with_capacity(out.len());
     let mut c = Vec::with_capacity(out.len());
-    let mut d = Vec::with_capacity(out.len());
-    for (w, x, y, z) in out {
-        a.push(w);
-        bb.push(x);
-        c.push(y);
-        d.push(z);
+    for (x, y, z) in out {
+        a.push(x);
+        bb.push(y);
+        c.push(z);
     }
-    (a, bb, c, d)
+    (a, bb, c)
 }

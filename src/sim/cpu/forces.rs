@@ -6,7 +6,8 @@
 //! ghost sites and its seal (`capsule_inner`, `sim::ghosts`, `capsule_seal_pair`; README: deviations from SPEC).
 //! Solid (2.48): deviatoric stress over bonds, −nˢ∇p, artificial stress (2.59)–(2.60), artificial
 //! viscosity (2.54)–(2.58) over current neighbours, boundary contact, friction and attraction reactions,
-//! membrane reactions gathered from the liquid (§4.1: no atomics), g. XSPH (2.69) for both, in
+//! membrane reactions gathered from the liquid (§4.1: no atomics), g; and the solid's continuity dρ/dt
+//! (2.47), whose pairs are those of the pressure term and the walls' contact. XSPH (2.69) for both, in
 //! evaluation 0's force passes (`xsph`): its sum walks the neighbours the forces walk.
 
 use super::{BoundarySet, LiquidSet, Nbrs, ObjectContact, SolidSet};
@@ -734,7 +735,7 @@ pub fn forces_solid(
     nb: &Nbrs,
     xsph: bool,
     seal_scale: &[f32],
-) -> (Vec<Vec3>, Option<Vec<Vec3>>) {
+) -> SolidForces {
     let p = c.p;
     let ks = &p.k_solid;
     let kl = &p.k_liquid;
@@ -746,12 +747,12 @@ pub fn forces_solid(
     let dt_upper = p.dt_upper();
     let dims = p.dim.n();
     let hg = if s.hg_fit.len() == s.x.len() { p.hourglass } else { 0.0 };
-    let (a, vx): (Vec<Vec3>, Vec<Vec3>) = (0..s.x.len())
+    let out: Vec<(Vec3, Vec3, f32)> = (0..s.x.len())
         .into_par_iter()
         .with_min_len(super::MIN_PAR_LEN)
         .map(|i| {
             if s.flags[i] & SolidFlags::KINEMATIC != 0 {
-                return (Vec3::ZERO, s.v[i]);
+                return (Vec3::ZERO, s.v[i], 0.0);
             }
             let (xi, vi, rho, pr, n_s) = (s.x[i], s.v[i], s.rho[i], s.p[i], s.n_s[i]);
             let inv2 = 1.0 / (rho * rho);
@@ -775,14 +776,17 @@ pub fn forces_solid(
                     a += hourglass_pair(p, s.hg_fit[i], s.hg_fit[j], s.x_ref[j] - s.x_ref[i], xij, s.m[j], stiff);
                 }
             }
-            // Isotropic pressure, artificial stress and artificial viscosity over current neighbours.
+            // Isotropic pressure, artificial stress and artificial viscosity over current neighbours, and
+            // the continuity dρ/dt (2.47) over the same pairs.
             let pi = pr * inv2;
             let mut d_xsph = Vec3::ZERO;
+            let mut drho = 0.0f32;
             nb.solid.for_each(xi, support, |j, xij, r| {
                 if j == i {
                     return;
                 }
                 let grad = xij * ks.grad_cubic_factor(r);
+                drho += s.m[j] * (vi - s.v[j]).dot(grad);
                 let pj = s.p[j] / (s.rho[j] * s.rho[j]);
                 // −n∇p with the pair's mean fraction (antisymmetric: see forces_liquid)
                 let mut acc = grad * (-0.5 * (n_s + s.n_s[j]) * (pi + pj));
@@ -813,6 +817,10 @@ pub fn forces_solid(
             let mut contact = WallContact::default();
             nb.boundary.for_each(xi, support, |j, xib, r| {
                 let grad = xib * ks.grad_cubic_factor(r);
+                // B_s in the continuity (2.47), with its solid-equivalent mass
+                if r < support {
+                    drho += b.m_s[j] * (vi - b.v[j]).dot(grad);
+                }
                 let obj = b.object[j] as usize;
                 let mode = c.contacts[obj];
                 let bracket = if mode.density < 0.0 {
@@ -889,10 +897,27 @@ pub fn forces_solid(
                 let d = super::grid::min_image(xi - s.x_ref[i], period);
                 a -= d * p.tether_omega2 + vi * p.tether_damping;
             }
-            (a + c.gravity, xsph_velocity(vi, d_xsph, p.xsph_s))
+            (a + c.gravity, xsph_velocity(vi, d_xsph, p.xsph_s), drho)
         })
-        .unzip();
-    (a, xsph.then_some(vx))
+        .collect();
+    let mut a = Vec::with_capacity(out.len());
+    let mut vx = Vec::with_capacity(out.len());
+    let mut drho = Vec::with_capacity(out.len());
+    for (x, y, z) in out {
+        a.push(x);
+        vx.push(y);
+        drho.push(z);
+    }
+    SolidForces { a, xsph: xsph.then_some(vx), drho }
+}
+
+/// What `forces_solid` returns per solid particle: the acceleration, the XSPH velocity (evaluation 0)
+/// and the continuity dρ/dt (2.47), summed in the force walks over the solid and the walls (0 for a
+/// kinematic particle, whose ρ is not integrated).
+pub struct SolidForces {
+    pub a: Vec<Vec3>,
+    pub xsph: Option<Vec<Vec3>>,
+    pub drho: Vec<f32>,
 }
 
 #[cfg(test)]

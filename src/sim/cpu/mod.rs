@@ -561,9 +561,8 @@ impl CpuSolver {
             );
         }
         let t0 = self.timers.lap("density", t0);
-        if let Some((drho_s, n_l_s, n_s_s, p_s)) = solid_pass {
+        if let Some((n_l_s, n_s_s, p_s)) = solid_pass {
             let s = &mut self.st.solid;
-            s.drho = drho_s;
             s.n_l = n_l_s;
             s.n_s = n_s_s;
             s.p = p_s;
@@ -590,12 +589,17 @@ impl CpuSolver {
         };
         let forces::LiquidForces { a: a_l, xsph: vx_l, seal_scale } =
             forces::forces_liquid(&ctx, &self.st.liquid, &self.st.solid, &self.st.boundary, &nb, with_xsph);
-        let (a_s, vx_s) = if p.solid_dynamic {
+        // (a skeleton held still keeps its dρ/dt: its ρ is not integrated)
+        let (a_s, vx_s, drho_s) = if p.solid_dynamic {
             let (st, scale) = (&self.st, &seal_scale);
-            forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, with_xsph, scale)
+            let f = forces::forces_solid(&ctx, &st.solid, &st.liquid, &st.boundary, &nb, with_xsph, scale);
+            (f.a, f.xsph, Some(f.drho))
         } else {
-            (vec![Vec3::ZERO; self.st.solid.x.len()], None)
+            (vec![Vec3::ZERO; self.st.solid.x.len()], None, None)
         };
+        if let Some(drho) = drho_s {
+            self.st.solid.drho = drho;
+        }
         if let Some(vx) = vx_l {
             self.st.liquid.vx = vx;
         }
@@ -1211,8 +1215,7 @@ mod tests {
             assert_eq!(bits(&p), bits(&s.st.liquid.p), "p at step {}", s.st.steps);
             // the solid's nˡ (density_solid_kept) likewise
             assert_eq!(s.solid_n_l_generation, Some(s.grid_generation), "step {}", s.st.steps);
-            let (_, n_l_s, _, _) =
-                density::density_solid(&s.params, &s.st.solid, &s.st.liquid, &s.st.boundary, &nb, true);
+            let (n_l_s, _, _) = density::density_solid(&s.params, &s.st.solid, &s.st.liquid, &s.st.boundary, &nb, true);
             assert_eq!(bits(&n_l_s), bits(&s.st.solid.n_l), "solid nˡ at step {}", s.st.steps);
         }
         assert!(s.st.liquid.v.iter().any(|v| v.length() > 0.0), "the block moved");
