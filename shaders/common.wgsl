@@ -796,33 +796,32 @@ fn capsule_seal_walks(pr: f32) -> bool {
     return pr <= 0.0;
 }
 
-// Whether liquid at x_i − x_g = xig counts ghost g (its owner sealing): x_i beneath the organ's surface
-// at the owner (capsule_seal_offset beyond its particle) by its normal or along the ghost's offset.
-// Twin of ghosts.rs ghost_counts.
-fn ghost_counts(g: u32, xig: vec3<f32>) -> bool {
-    return ghost_side_counts(ghost_side(g), xig);
-}
-
-// What ghost_counts reads of ghost g: whether its owner seals, its offset F_o d and the owner's normal.
-// A walk around one ghost (ghost_pressure) loads it once instead of for every liquid particle in reach.
+// What ghost_side_counts reads of ghost g: whether its owner seals and its frame — the offset F_o d with the
+// blood's mass (frame0), the owner's normal with the tissue's mass (frame1). A walk around one ghost
+// (ghost_pressure) loads it once instead of for every liquid particle in reach, and a walk over ghosts
+// reads the masses from it instead of loading the frame again.
 struct GhostSide {
     seals: bool,
-    fd: vec3<f32>,
-    n: vec3<f32>,
+    frame0: vec4<f32>,
+    frame1: vec4<f32>,
 }
 
 fn ghost_side(g: u32) -> GhostSide {
-    return GhostSide(ghost_pos[g].w != 0.0, ghost_frame[2u * g].xyz, ghost_frame[2u * g + 1u].xyz);
+    return GhostSide(ghost_pos[g].w != 0.0, ghost_frame[2u * g], ghost_frame[2u * g + 1u]);
 }
 
+// Whether liquid at x_i − x_g = xig counts the ghost of `side` (its owner sealing): x_i beneath the
+// organ's surface at the owner (capsule_seal_offset beyond its particle) by its normal or along the
+// ghost's offset. Twin of ghosts.rs ghost_counts.
 fn ghost_side_counts(side: GhostSide, xig: vec3<f32>) -> bool {
     if (!side.seals) {
         return false;
     }
-    let xio = xig + side.fd;
+    let fd = side.frame0.xyz;
+    let xio = xig + fd;
     let s = params.capsule_seal_offset;
-    let n = side.n;
-    return (any(n != vec3<f32>(0.0)) && dot3(xio, n) <= s) || dot3(xio, side.fd) <= s * sqrt(dot3(side.fd, side.fd));
+    let n = side.frame1.xyz;
+    return (any(n != vec3<f32>(0.0)) && dot3(xio, n) <= s) || dot3(xio, fd) <= s * sqrt(dot3(fd, fd));
 }
 
 // Acceleration of a liquid particle from one boundary-like neighbour (forces.rs

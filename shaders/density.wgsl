@@ -103,15 +103,18 @@ fn density_liquid(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let e = ghost_order[q];
                 let xig = min_image_wrapped(xi - e.pos);
                 let r2 = dot3(xig, xig);
-                if (r2 < r2g && ghost_counts(e.id, xig)) {
-                    let r = sqrt(r2);
-                    let m_l = ghost_frame[2u * e.id].w;
-                    if (r < kl.r && m_l > 0.0) {
-                        sees = true;
-                        rho += m_l * w_poly6(kl, r);
-                    }
-                    if (r < kx.r) {
-                        sum_s += ghost_frame[2u * e.id + 1u].w * w_poly6(kx, r);
+                if (r2 < r2g) {
+                    let side = ghost_side(e.id);
+                    if (ghost_side_counts(side, xig)) {
+                        let r = sqrt(r2);
+                        let m_l = side.frame0.w;
+                        if (r < kl.r && m_l > 0.0) {
+                            sees = true;
+                            rho += m_l * w_poly6(kl, r);
+                        }
+                        if (r < kx.r) {
+                            sum_s += side.frame1.w * w_poly6(kx, r);
+                        }
                     }
                 }
             }

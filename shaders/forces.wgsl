@@ -256,7 +256,8 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
         return;
     }
     let pi = pr / (rho * rho);
-    let inv_m = 1.0 / liquid_pos[i].w;
+    let m_i = liquid_pos[i].w;
+    let inv_m = 1.0 / m_i;
     let ci = cell_coords(xi);
     let kb = nbr_begin();
     let ke = nbr_end();
@@ -335,12 +336,15 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
                 let e = ghost_order[q];
                 let xig = min_image_wrapped(xi - e.pos);
                 let r2 = dot3(xig, xig);
-                if (r2 < r2g && ghost_counts(e.id, xig)) {
-                    let m_g = ghost_frame[2u * e.id].w;
-                    let st = ghost_state[2u * e.id];
-                    if (m_g > 0.0 && st.y > 0.0) {
-                        let v_o = solid_vel[bitcast<u32>(ghost_ref[2u * e.id].w)].xyz;
-                        a += ghost_on_liquid(rho, pr, n_l, vi, m_g, v_o, xig, sqrt(r2), st.x, st.y, 0.0);
+                if (r2 < r2g) {
+                    let side = ghost_side(e.id);
+                    let m_g = side.frame0.w;
+                    if (ghost_side_counts(side, xig) && m_g > 0.0) {
+                        let st = ghost_state[2u * e.id];
+                        if (st.y > 0.0) {
+                            let v_o = solid_vel[bitcast<u32>(ghost_ref[2u * e.id].w)].xyz;
+                            a += ghost_on_liquid(rho, pr, n_l, vi, m_g, v_o, xig, sqrt(r2), st.x, st.y, 0.0);
+                        }
                     }
                 }
             }
@@ -371,7 +375,7 @@ fn liquid_forces(gid: vec3<u32>, xsph: bool) {
                     if (params.capsule_seal > 0.0 && capsule_seals(j)) {
                         let sp = capsule_seal_pair(n, xij, r, vi - vj.xyz);
                         seal_w += sp.w;
-                        seal_sum += sp.stop * capsule_seal_share(liquid_pos[i].w, solid_pos[j].w);
+                        seal_sum += sp.stop * capsule_seal_share(m_i, solid_pos[j].w);
                         seal_back += sp.back;
                     }
                     // beneath the capsule its ghosts are the wall (forces.rs capsule_inner)
@@ -475,11 +479,12 @@ fn solid_forces(gid: vec3<u32>, xsph: bool) {
     if (params.hourglass > 0.0) {
         let fit_i = m3_load(solid_affine[i]);
         let x0i = solid_pos_ref[i].xyz;
+        let flags_i = solid_flags[i];
         for (var b = 0u; b < nb; b++) {
             let j = bond_table[i * cap + b];
             let pj4 = solid_pos[j];
             let xij = min_image(xi - pj4.xyz);
-            let stiff = hourglass_stiffness(solid_flags[i], solid_flags[j]);
+            let stiff = hourglass_stiffness(flags_i, solid_flags[j]);
             a += hourglass_pair(fit_i, m3_load(solid_affine[j]), solid_pos_ref[j].xyz - x0i, xij, pj4.w, stiff);
         }
     }

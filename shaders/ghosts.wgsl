@@ -4,7 +4,7 @@
 //   the owner's capsule normal n̂_o (capsule_normal) and whether the owner still seals (capsule_seals;
 //   with the seal off, always). The ghost grid then bins ghost_pos like the three particle sets.
 // * ghost_pressure (after density_liquid): a blood ghost's wall pressure and density, the Shepard means
-//   Σ p_j W / Σ W, Σ ρ_j W / Σ W over the liquid that counts it (ghost_counts; Adami, Hu & Adams 2012
+//   Σ p_j W / Σ W, Σ ρ_j W / Σ W over the liquid that counts it (ghost_side_counts; Adami, Hu & Adams 2012
 //   without their body-force term; p clamped at 0), and the reaction of its boundary force (§4.1) on that
 //   liquid, −Σ m_j a_j with the ambient pressure taken off both sides, which its owner gathers in
 //   forces_solid.

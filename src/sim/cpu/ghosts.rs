@@ -79,7 +79,7 @@ pub struct GhostNbrs<'a> {
 /// Blood in the half spacing between the capsule's particles and the surface still counts the ghosts
 /// beyond; counted only beneath the particles' plane, it lost every ghost at once as it crossed the
 /// plane (nˢ, ρ and its pressure dropped, the capsule particle became its wall) and jolted the capsule.
-/// Twin of `ghost_counts` in common.wgsl.
+/// Twin of `ghost_side_counts` in common.wgsl.
 #[inline]
 pub fn ghost_counts(pl: &Placed, g: usize, xig: Vec3, surface: f32) -> bool {
     if !pl.seals[g] {
